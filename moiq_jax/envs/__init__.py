@@ -1,0 +1,28 @@
+"""Pure-functional multi-objective environments with vector rewards."""
+
+from moiq_jax.envs.base import Env, State, Wrapper
+from moiq_jax.envs.cdst import ContinuousDeepSeaTreasure
+from moiq_jax.envs.dst import CONCAVE_MAP, CONVEX_MAP, MINI_MAP, DeepSeaTreasure, SeaMap
+from moiq_jax.envs.registry import EnvSpec, make, register, registered, spec
+from moiq_jax.envs.wrappers import AbsorbingState, AutoReset, TimeLimit, VmapWrapper
+
+__all__ = [
+    "CONCAVE_MAP",
+    "CONVEX_MAP",
+    "MINI_MAP",
+    "AbsorbingState",
+    "AutoReset",
+    "ContinuousDeepSeaTreasure",
+    "DeepSeaTreasure",
+    "Env",
+    "EnvSpec",
+    "SeaMap",
+    "State",
+    "TimeLimit",
+    "VmapWrapper",
+    "Wrapper",
+    "make",
+    "register",
+    "registered",
+    "spec",
+]
