@@ -1,7 +1,10 @@
 """moiq_jax: multi-objective inverse RL from several experts with different preferences, in JAX."""
 
 from moiq_jax import envs
+from moiq_jax.config import Config
 from moiq_jax.evaluate import episode_returns
+from moiq_jax.experts import Demonstrations
+from moiq_jax.train import train
 
 __version__ = "0.1.0"
-__all__ = ["envs", "episode_returns"]
+__all__ = ["Config", "Demonstrations", "envs", "episode_returns", "train"]

@@ -1,0 +1,1 @@
+"""Learning algorithms: consensus ADMM (discrete MOIRL), MOIQ and its baselines."""
