@@ -92,7 +92,13 @@ class ContinuousDeepSeaTreasure(Env):
         value = self._grid[here[0], here[1]]
         found = value > 0
         reward = jnp.stack([jnp.where(found, value, 0.0), jnp.float32(-1.0)]).astype(jnp.float32)
-        return state.replace(env_state=PositionState(position), obs=position, reward=reward, done=found)
+        return state.replace(
+            env_state=PositionState(position),
+            obs=position,
+            reward=reward,
+            done=found,
+            truncated=jnp.zeros((), bool),  # only a time limit truncates
+        )
 
     def optimal_actions(self, treasure: tuple[int, int]) -> np.ndarray:
         """Table ``[rows * 2, cols * 2, 2]`` over lattice points of king-move actions that follow a

@@ -227,6 +227,7 @@ class DeepSeaTreasure(Env):
             obs=self._observe(position),
             reward=reward,
             done=found,
+            truncated=jnp.zeros((), bool),  # only a time limit truncates
         )
 
     def tabular(self):
