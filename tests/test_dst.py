@@ -7,7 +7,6 @@ import numpy as np
 import pytest
 
 from moiq_jax import envs
-from moiq_jax.envs.dst import COMPASS_MOVES
 
 NUM_SEQUENCES = 1000
 HORIZON = 110  # past the 100-step limit, so truncation is exercised
@@ -84,26 +83,23 @@ def test_mini_map_front_is_convex_and_splits_the_paper_experts():
     assert np.argmax(front @ [0.1, 0.9]) == 0 and np.argmax(front @ [0.9, 0.1]) == len(front) - 1
 
 
-@pytest.mark.parametrize("name", ["dst", "dst-mini", "dst-concave"])
-def test_tabular_model_matches_step(name):
+@pytest.mark.parametrize("name, gym_id", [("dst", "deep-sea-treasure-v0"), ("dst-concave", "deep-sea-treasure-concave-v0")])
+def test_tabular_model_matches_mo_gymnasium_from_every_cell(name, gym_id):
     env = envs.make(name).unwrapped
     next_state, reward, terminal = env.tabular()
-    rows, cols = env.sea_map.rows, env.sea_map.cols
-    free = [(r, c) for r in range(rows) for c in range(cols) if env.sea_map.grid[r, c] != -10]
-    positions = jnp.array([p for p in free for _ in COMPASS_MOVES], jnp.int32)
-    actions = jnp.array([a for _ in free for a in range(4)], jnp.int32)
-    start = env.reset(jax.random.key(0))
-
-    def step_from(position, action):
-        return env.step(start.replace(env_state=start.env_state.replace(position=position)), action)
-
-    out = jax.vmap(step_from)(positions, actions)
-    s = np.asarray(positions[:, 0] * cols + positions[:, 1])
-    a = np.asarray(actions)
-    s_next = np.asarray(out.env_state.position[:, 0] * cols + out.env_state.position[:, 1])
-    np.testing.assert_array_equal(next_state[s, a], s_next)
-    np.testing.assert_array_equal(reward[s, a], np.asarray(out.reward))
-    np.testing.assert_array_equal(terminal[s_next], np.asarray(out.done))
+    reference = mo_gym.make(gym_id).unwrapped
+    reference.reset(seed=0)
+    grid, cols = env.sea_map.grid, env.sea_map.cols
+    for (r, c), value in np.ndenumerate(grid):
+        if value == -10:
+            continue
+        for a in range(4):
+            reference.current_state = np.array([r, c], np.int32)
+            ref_obs, ref_reward, ref_term, _, _ = reference.step(a)
+            s = r * cols + c
+            assert divmod(int(next_state[s, a]), cols) == tuple(ref_obs.tolist()), (r, c, a)
+            np.testing.assert_array_equal(reward[s, a], ref_reward)
+            assert terminal[next_state[s, a]] == ref_term
 
 
 def test_unknown_env_lists_known_ones():

@@ -47,6 +47,7 @@ class Env(abc.ABC):
     observation_size: int
     num_actions: int | None = None
     action_size: int | None = None
+    deterministic_reset: bool = False  # True when reset ignores its key (AutoReset then draws no keys)
 
     @property
     def discrete(self) -> bool:
@@ -114,6 +115,10 @@ class Wrapper(Env):
     @property
     def unwrapped(self) -> Env:
         return self.env.unwrapped
+
+    @property
+    def deterministic_reset(self) -> bool:
+        return self.env.deterministic_reset
 
     def reset(self, key: jax.Array) -> State:
         return self.env.reset(key)

@@ -47,6 +47,7 @@ class PositionState:
 class ContinuousDeepSeaTreasure(Env):
     """Continuous Deep Sea Treasure; see the module docstring for the rules."""
 
+    deterministic_reset = True
     reward_dim = 2
     observation_size = 2
     action_size = 2

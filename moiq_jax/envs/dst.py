@@ -182,6 +182,7 @@ class GridState:
 class DeepSeaTreasure(Env):
     """Discrete Deep Sea Treasure; see the module docstring for the rules."""
 
+    deterministic_reset = True
     reward_dim = 2
     observation_size = 2
     num_actions = 4
@@ -189,8 +190,12 @@ class DeepSeaTreasure(Env):
     def __init__(self, sea_map=CONVEX_MAP, float_state: bool = False):
         self.sea_map = sea_map if isinstance(sea_map, SeaMap) else SeaMap(sea_map)
         self.float_state = bool(float_state)
-        self._grid = jnp.asarray(self.sea_map.grid)
-        self._moves = jnp.asarray(COMPASS_MOVES, jnp.int32)
+        # ``step`` is a lookup in the tabular model: one source of truth for the dynamics, and the
+        # fewest operations per step.
+        next_state, reward, terminal = self.tabular()
+        self._next_state, self._reward, self._terminal = map(jnp.asarray, (next_state, reward, terminal))
+        cells = np.arange(self.sea_map.rows * self.sea_map.cols)
+        self._positions = jnp.asarray(np.stack(np.divmod(cells, self.sea_map.cols), axis=1), jnp.int32)
 
     def pareto_front(self) -> np.ndarray:
         """Exact undiscounted front ``(treasure, -steps)`` of this map."""
@@ -213,15 +218,12 @@ class DeepSeaTreasure(Env):
     def step(self, state, action):
         self.check_action(action)
         action = jnp.clip(jnp.asarray(action, jnp.int32), 0, self.num_actions - 1)
-        target = state.env_state.position + self._moves[action]
-        rows, cols = self.sea_map.rows, self.sea_map.cols
-        inside = (target[0] >= 0) & (target[0] < rows) & (target[1] >= 0) & (target[1] < cols)
-        safe_target = jnp.clip(target, 0, jnp.array([rows - 1, cols - 1]))
-        valid = inside & (self._grid[safe_target[0], safe_target[1]] != ROCK)
-        position = jnp.where(valid, target, state.env_state.position)
-        cell = self._grid[position[0], position[1]]
-        found = cell > 0
-        reward = jnp.stack([jnp.where(found, cell, 0.0), jnp.float32(-1.0)]).astype(jnp.float32)
+        position = state.env_state.position
+        cell = position[0] * self.sea_map.cols + position[1]
+        next_cell = self._next_state[cell, action]
+        position = self._positions[next_cell]
+        reward = self._reward[cell, action]
+        found = self._terminal[next_cell]
         return state.replace(
             env_state=GridState(position),
             obs=self._observe(position),
@@ -233,7 +235,7 @@ class DeepSeaTreasure(Env):
     def tabular(self):
         """The MDP as tables over cells ``s = row * cols + col`` (rock cells included, never reached).
 
-        Returns ``(next_state[S, A], reward[S, A, 2], terminal[S])``, the same dynamics as ``step``.
+        Returns ``(next_state[S, A], reward[S, A, 2], terminal[S])``; ``step`` looks its dynamics up here.
         """
         rows, cols = self.sea_map.rows, self.sea_map.cols
         grid = self.sea_map.grid

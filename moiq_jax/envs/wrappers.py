@@ -82,7 +82,8 @@ class AutoReset(Wrapper):
 
     The returned state keeps that step's reward, done and truncated but holds the new episode's
     observation; the observation the episode ended on is ``info['final_obs']`` (use it as next_obs).
-    Reset keys are drawn from ``info['rng']``.
+    Reset keys are drawn from ``info['rng']``, except for envs whose reset is deterministic, which
+    draw none (a key split per env and step is most of the cost of a cheap env).
     """
 
     def reset(self, key):
@@ -92,7 +93,10 @@ class AutoReset(Wrapper):
 
     def step(self, state, action):
         nxt = self.env.step(state, action)
-        key, sub = jax.random.split(state.info["rng"])
+        if self.env.deterministic_reset:
+            key = sub = state.info["rng"]
+        else:
+            key, sub = jax.random.split(state.info["rng"])
         fresh = self.env.reset(sub)
         fresh_info = {**fresh.info, "rng": key, "final_obs": nxt.obs}
         ended = nxt.done | nxt.truncated
