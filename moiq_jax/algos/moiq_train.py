@@ -132,12 +132,12 @@ def make_train(config: Config, demos: Demonstrations | None = None) -> Trainer:
         return {**batches, "is_expert": jnp.broadcast_to(is_expert, (num_experts, 2 * config.batch_size))}
 
     def env_iteration(state: RunnerState, beta, expert_data, prefs):
-        key, act_key, update_key = jax.random.split(state.key, 3)
+        key, act_key, random_key, update_key = jax.random.split(state.key, 4)
         num_experts = prefs.shape[0]
         obs = state.env_state.obs  # [E, num_envs, obs]
         learned = jax.vmap(policy_action, in_axes=(None, 0, 0, 0))(
             state.learner.params.actor, obs, prefs, jax.random.split(act_key, num_experts))
-        random = jax.random.uniform(act_key, learned.shape, minval=-1.0, maxval=1.0)
+        random = jax.random.uniform(random_key, learned.shape, minval=-1.0, maxval=1.0)
         action = jnp.where(state.env_steps < config.learning_starts, random, learned)
         nxt = jax.vmap(rollout_env.step)(state.env_state, action)
         transitions = {"obs": obs, "action": action, "next_obs": nxt.info["final_obs"],
