@@ -7,7 +7,10 @@ import importlib
 from moiq_jax.config import Config
 
 # algo name -> module exposing ``train(config) -> result``
-_ENTRY_POINTS: dict[str, str] = {}
+_ENTRY_POINTS: dict[str, str] = {
+    "moiq": "moiq_jax.algos.moiq_train",
+    "iq_learn": "moiq_jax.algos.moiq_train",  # the same program with one model per expert and beta = 0
+}
 
 
 def train(config: Config):
@@ -16,3 +19,17 @@ def train(config: Config):
     if config.algo not in _ENTRY_POINTS:
         raise NotImplementedError(f"algo {config.algo!r} is not available yet")
     return importlib.import_module(_ENTRY_POINTS[config.algo]).train(config)
+
+
+def sweep(config: Config, **values):
+    """Train every combination of the given values (``beta=[...]``, ``seed=[...]``) as one vmapped
+    program; see ``moiq_jax.algos.moiq_train.sweep``."""
+    config.validate()
+    if config.algo not in ("moiq", "iq_learn"):
+        raise NotImplementedError(f"sweep is available for moiq and iq_learn, not {config.algo!r}")
+    unknown = set(values) - {"beta", "seed"}
+    if unknown:
+        raise ValueError(f"sweep varies beta and seed only, got {sorted(unknown)}")
+    from moiq_jax.algos.moiq_train import sweep as moiq_sweep
+
+    return moiq_sweep(config, **values)

@@ -1,0 +1,288 @@
+"""Algorithm 1 as pure JAX (PureJaxRL style): ``make_train(config)`` builds ``train(key, beta)``, which
+runs vectorised rollouts for all experts, MOIQ updates vmapped over experts, and an evaluation after each
+chunk of ``eval_interval`` env steps, all in ``lax.scan``. ``train(config)`` drives the same chunks from
+the host (logging between them); ``sweep`` vmaps the whole of ``train(key, beta)`` over a grid.
+
+The "iq_learn" baseline is the same program with one expert per model and beta = 0, vmapped over the
+experts: n separate models, each with its own networks, buffer and envs.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+import time
+from typing import Any, NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optax
+from flax import struct
+
+from moiq_jax import envs, replay
+from moiq_jax.algos import moiq
+from moiq_jax.config import Config
+from moiq_jax.envs.wrappers import AutoReset, VmapWrapper
+from moiq_jax.evaluate import episode_returns
+from moiq_jax.experts import Demonstrations
+from moiq_jax.networks import TanhGaussianActor, TwinVectorCritic, sample_tanh_gaussian
+
+
+@struct.dataclass
+class RunnerState:
+    """Everything one training run carries between steps (for ``E`` experts of one model)."""
+
+    learner: moiq.Learner
+    buffers: replay.ReplayBuffer  # leading expert axis
+    env_state: Any  # [E, num_envs, ...]
+    key: jax.Array
+    env_steps: jax.Array  # per expert
+    best_params: moiq.Params
+    best_return: jax.Array  # mean scalarised evaluation return of best_params
+
+
+class Trainer(NamedTuple):
+    """Pure pieces of one configured training: ``init(key)``, ``run_chunk(state, beta)`` (eval_interval
+    env steps then an evaluation), ``train(key, beta)`` (all chunks); ``num_chunks``."""
+
+    init: Any
+    run_chunk: Any
+    train: Any
+    num_chunks: int
+
+
+def load_demonstrations(config: Config) -> Demonstrations:
+    """The configured demos file, or fresh oracle demonstrations for cdst; experts sorted by preference."""
+    env = envs.make(config.env, absorbing=True)
+    if config.demos is not None:
+        demos = Demonstrations.load(config.demos, env)
+    elif config.env == "cdst":
+        from moiq_jax.experts.cdst_oracle import record_demonstrations
+
+        demos = record_demonstrations(config.preferences, config.num_demos)
+    else:
+        raise ValueError(f"no oracle experts for env {config.env!r}; pass a demos file")
+    order = np.lexsort(np.asarray(demos.preferences).T[::-1])[::-1]  # descending, first objective first
+    return jax.tree_util.tree_map(lambda x: np.asarray(x)[order], demos)
+
+
+def _expert_transitions(demos: Demonstrations) -> dict:
+    """Real (unpadded) demo steps as ``[E, M, ...]`` arrays; every expert must have the same count M."""
+    mask = demos.mask()
+    counts = mask.reshape(mask.shape[0], -1).sum(1)
+    if np.any(counts != counts[0]):
+        raise ValueError(f"MOIQ needs equally many demo steps per expert (use the absorbing-state env), got {counts}")
+    take = lambda x: np.stack([np.asarray(x)[e][mask[e]] for e in range(mask.shape[0])])
+    return {
+        "obs": take(demos.obs), "action": take(demos.actions), "next_obs": take(demos.next_obs),
+        "done": take(demos.dones).astype(np.float32), "true_reward": take(demos.rewards),
+    }
+
+
+def _pearson(x, y):
+    x, y = x - x.mean(), y - y.mean()
+    return jnp.sum(x * y) / jnp.sqrt(jnp.sum(x**2) * jnp.sum(y**2) + 1e-12)
+
+
+def make_train(config: Config, demos: Demonstrations | None = None) -> Trainer:
+    """Build the pure training functions for ``config`` (``algo`` "moiq" or "iq_learn")."""
+    config.validate()
+    demos = load_demonstrations(config) if demos is None else demos
+    data = jax.tree_util.tree_map(jnp.asarray, _expert_transitions(demos))
+    preferences = jnp.asarray(demos.preferences)
+    separate = config.algo == "iq_learn"
+
+    env = envs.make(config.env, absorbing=True)
+    rollout_env = VmapWrapper(AutoReset(env), config.num_envs)
+    nets = moiq.Networks(TwinVectorCritic(config.hidden_sizes, env.reward_dim),
+                         TanhGaussianActor(config.hidden_sizes, env.action_size))
+    optimisers = moiq.Optimisers(optax.adam(config.critic_lr), optax.adam(config.actor_lr), optax.adam(config.alpha_lr))
+    hyper = moiq.Hyper(config.gamma, config.alpha_reg, -float(env.action_size))
+    iterations_per_chunk = config.eval_interval // config.num_envs
+    num_chunks = config.total_steps // config.eval_interval
+
+    def policy_action(actor_params, obs, preference, key):
+        w = jnp.broadcast_to(preference, (obs.shape[0], preference.shape[-1]))
+        return sample_tanh_gaussian(key, *nets.actor.apply(actor_params, obs, w))[0]
+
+    def init(key, prefs):
+        num_experts = prefs.shape[0]
+        learner_key, env_key, key = jax.random.split(key, 3)
+        learner = moiq.init_learner(nets, optimisers, learner_key, env.observation_size, env.action_size,
+                                    prefs, config.init_alpha)
+        example = {"obs": jnp.zeros(env.observation_size), "action": jnp.zeros(env.action_size),
+                   "next_obs": jnp.zeros(env.observation_size), "done": jnp.zeros(())}
+        buffers = jax.vmap(lambda _: replay.init(example, config.buffer_size))(jnp.arange(num_experts))
+        env_state = jax.vmap(rollout_env.reset)(jax.random.split(env_key, num_experts))
+        return RunnerState(learner, buffers, env_state, key, jnp.zeros((), jnp.int32),
+                           learner.params, jnp.full((), -jnp.inf))
+
+    def sample_batches(buffers, expert_data, key):
+        num_experts = expert_data["obs"].shape[0]
+        policy_key, expert_key = jax.random.split(key)
+        policy = jax.vmap(replay.sample, in_axes=(0, 0, None))(
+            buffers, jax.random.split(policy_key, num_experts), config.batch_size)
+        rows = jax.random.randint(expert_key, (num_experts, config.batch_size), 0, expert_data["obs"].shape[1])
+        expert = jax.tree_util.tree_map(
+            lambda x: jnp.take_along_axis(x, rows.reshape(*rows.shape, *([1] * (x.ndim - 2))), axis=1),
+            {k: expert_data[k] for k in policy})
+        batches = jax.tree_util.tree_map(lambda e, p: jnp.concatenate([e, p], axis=1), expert, policy)
+        is_expert = jnp.arange(2 * config.batch_size) < config.batch_size
+        return {**batches, "is_expert": jnp.broadcast_to(is_expert, (num_experts, 2 * config.batch_size))}
+
+    def env_iteration(state: RunnerState, beta, expert_data, prefs):
+        key, act_key, random_key, update_key = jax.random.split(state.key, 4)
+        num_experts = prefs.shape[0]
+        obs = state.env_state.obs  # [E, num_envs, obs]
+        learned = jax.vmap(policy_action, in_axes=(None, 0, 0, 0))(
+            state.learner.params.actor, obs, prefs, jax.random.split(act_key, num_experts))
+        random = jax.random.uniform(random_key, learned.shape, minval=-1.0, maxval=1.0)
+        action = jnp.where(state.env_steps < config.learning_starts, random, learned)
+        nxt = jax.vmap(rollout_env.step)(state.env_state, action)
+        transitions = {"obs": obs, "action": action, "next_obs": nxt.info["final_obs"],
+                       "done": nxt.done.astype(jnp.float32)}
+        buffers = jax.vmap(replay.add)(state.buffers, transitions)
+
+        def learn(learner):
+            def one_update(learner, k):
+                batch_key, step_key = jax.random.split(k)
+                batches = sample_batches(buffers, expert_data, batch_key)
+                return moiq.update(learner, nets, optimisers, batches, prefs, beta, step_key, hyper,
+                                   config.tau, config.learn_alpha)
+
+            learner, metrics = jax.lax.scan(one_update, learner, jax.random.split(update_key, config.updates_per_step))
+            return learner, jax.tree_util.tree_map(lambda m: m[-1], metrics)
+
+        ready = state.env_steps + config.num_envs > config.learning_starts
+        learner, metrics = jax.lax.cond(
+            ready, learn, lambda lrn: (lrn, jax.tree_util.tree_map(
+                lambda s: jnp.zeros(s.shape, s.dtype), jax.eval_shape(learn, lrn)[1])), state.learner)
+        metrics = {**metrics, "updated": ready}
+        return state.replace(learner=learner, buffers=buffers, env_state=nxt, key=key,
+                             env_steps=state.env_steps + config.num_envs), metrics
+
+    def evaluate_params(params, prefs, expert_data, key):
+        """Deterministic-policy vector returns per preference and the recovered-reward correlation."""
+        def one(preference, k):
+            def policy(_, obs):
+                mean, _ = nets.actor.apply(params.actor, obs[None], preference[None])
+                return jnp.tanh(mean[0])
+
+            return episode_returns(env, policy, k, config.eval_episodes)["returns"].mean(0)
+
+        keys = jax.random.split(key, prefs.shape[0] + 1)
+        returns = jax.vmap(one)(prefs, keys[1:])
+        alphas = jnp.exp(params.log_alpha)
+
+        def correlation(data_i, preference, alpha, k):
+            rewards, _ = moiq.recovered_rewards(nets, params.critic, params, alpha, data_i, preference, k, config.gamma)
+            return _pearson(jnp.mean(rewards, 0) @ preference, data_i["true_reward"] @ preference)
+
+        corr = jax.vmap(correlation)(expert_data, prefs, alphas, jax.random.split(keys[0], prefs.shape[0]))
+        return returns, corr
+
+    def run_chunk(state: RunnerState, beta, expert_data, prefs):
+        state, metrics = jax.lax.scan(lambda s, _: env_iteration(s, beta, expert_data, prefs), state, None,
+                                      length=iterations_per_chunk)
+        updated = jnp.maximum(jnp.sum(metrics.pop("updated")), 1)
+        metrics = jax.tree_util.tree_map(lambda m: jnp.sum(m, axis=0) / updated, metrics)  # mean over updates
+        key, eval_key = jax.random.split(state.key)
+        returns, corr = evaluate_params(state.learner.params, prefs, expert_data, eval_key)
+        scalar = jnp.sum(returns * prefs, axis=-1)
+        score = jnp.mean(scalar)
+        better = score > state.best_return
+        best = jax.tree_util.tree_map(lambda new, old: jnp.where(better, new, old),
+                                      state.learner.params, state.best_params)
+        state = state.replace(key=key, best_params=best, best_return=jnp.maximum(score, state.best_return))
+        metrics = {**metrics, "eval_return": returns, "eval_scalar_return": scalar, "reward_correlation": corr,
+                   "env_steps": state.env_steps}
+        return state, metrics
+
+    if separate:  # n single-expert models, vmapped; beta is irrelevant (no neighbours) and set to 0
+        per_model = jax.tree_util.tree_map(lambda x: x[:, None], data)
+        model_prefs = preferences[:, None]
+        num_models = preferences.shape[0]
+
+        def init_all(key):
+            return jax.vmap(init)(jax.random.split(key, num_models), model_prefs)
+
+        def chunk_all(state, beta):
+            state, metrics = jax.vmap(run_chunk, in_axes=(0, None, 0, 0))(state, 0.0 * beta, per_model, model_prefs)
+            return state, _merge_models(metrics)
+    else:
+        def init_all(key):
+            return init(key, preferences)
+
+        def chunk_all(state, beta):
+            return run_chunk(state, beta, data, preferences)
+
+    def train(key, beta):
+        state = init_all(key)
+        return jax.lax.scan(lambda s, _: chunk_all(s, beta), state, None, length=num_chunks)
+
+    return Trainer(init_all, chunk_all, train, num_chunks)
+
+
+def _merge_models(metrics):
+    """Per-model metrics ``[n, 1, ...]`` (or ``[n]`` for scalars) as per-expert ``[n, ...]``."""
+    return {k: (v[:, 0] if v.ndim >= 2 and v.shape[1] == 1 else v) for k, v in metrics.items()}
+
+
+@dataclasses.dataclass
+class TrainResult:
+    """final_params, best_params (by mean scalarised evaluation return), best_return, history: per
+    evaluation a dict of arrays (per-expert entries have an expert axis), and wall-clock seconds."""
+
+    config: Config
+    final_params: Any
+    best_params: Any
+    best_return: float
+    history: dict[str, np.ndarray]
+    seconds: float
+
+
+def train(config: Config, demos: Demonstrations | None = None, log=print) -> TrainResult:
+    """Run Algorithm 1 for ``config``: jitted chunks of ``eval_interval`` env steps, logged in between."""
+    trainer = make_train(config, demos)
+    start = time.perf_counter()
+    state = jax.jit(trainer.init)(jax.random.PRNGKey(config.seed))
+    run_chunk = jax.jit(trainer.run_chunk)
+    beta = jnp.float32(config.beta)
+    history = []
+    for _ in range(trainer.num_chunks):
+        state, metrics = run_chunk(state, beta)
+        metrics = jax.device_get(metrics)
+        history.append(metrics)
+        if log is not None:
+            steps = int(np.max(metrics["env_steps"]))
+            returns = np.round(np.asarray(metrics["eval_scalar_return"]), 2).tolist()
+            log(f"[{config.algo} beta={config.beta}] steps {steps}: scalarised returns {returns} "
+                f"({time.perf_counter() - start:.0f}s)")
+    stacked = {k: np.stack([h[k] for h in history]) for k in history[0]}
+    return TrainResult(config, state.learner.params, state.best_params, np.asarray(state.best_return),
+                       stacked, time.perf_counter() - start)
+
+
+def sweep(config: Config, beta=None, seed=None, demos: Demonstrations | None = None) -> dict:
+    """Train every (beta, seed) of the product of the given values as one vmapped, compiled program,
+    sharded over the run axis when several devices are present and they divide the number of runs.
+
+    Returns ``betas``, ``seeds`` (one entry per run), ``history`` (arrays with a leading run axis,
+    then the evaluation axis), ``best_return`` and ``best_params`` (leading run axis).
+    """
+    betas = [config.beta] if beta is None else list(beta)
+    seeds = [config.seed] if seed is None else list(seed)
+    grid = list(itertools.product(betas, seeds))
+    run_betas = jnp.asarray([b for b, _ in grid], jnp.float32)
+    keys = jax.vmap(jax.random.PRNGKey)(jnp.asarray([s for _, s in grid], jnp.uint32))
+    trainer = make_train(config, demos)
+    devices = jax.devices()
+    if len(devices) > 1 and len(grid) % len(devices) == 0:
+        sharding = jax.sharding.NamedSharding(jax.sharding.Mesh(np.array(devices), ("runs",)),
+                                              jax.sharding.PartitionSpec("runs"))
+        run_betas, keys = jax.device_put((run_betas, keys), sharding)
+    state, history = jax.jit(jax.vmap(trainer.train))(keys, run_betas)
+    return {"betas": np.asarray(run_betas), "seeds": np.asarray([s for _, s in grid]),
+            "history": jax.device_get(history), "best_return": np.asarray(state.best_return),
+            "best_params": state.best_params}

@@ -1,0 +1,82 @@
+"""Preference-conditioned networks for MOIQ: twin vector critics Q(s, a, w) in R^d and a tanh-Gaussian
+actor pi(a | s, w). The preference w is an input, so one network serves every expert."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import flax.linen as nn
+import jax
+import jax.numpy as jnp
+
+LOG_STD_MIN, LOG_STD_MAX = -5.0, 2.0
+
+
+class MLP(nn.Module):
+    """ReLU hidden layers, then a linear output layer of ``out_size``."""
+
+    hidden_sizes: Sequence[int]
+    out_size: int
+
+    @nn.compact
+    def __call__(self, x):
+        for size in self.hidden_sizes:
+            x = nn.relu(nn.Dense(size)(x))
+        return nn.Dense(self.out_size)(x)
+
+
+class VectorCritic(nn.Module):
+    """Q(s, a, w): one value per objective, shape ``(..., reward_dim)``."""
+
+    hidden_sizes: Sequence[int]
+    reward_dim: int
+
+    @nn.compact
+    def __call__(self, obs, action, preference):
+        return MLP(self.hidden_sizes, self.reward_dim)(jnp.concatenate([obs, action, preference], axis=-1))
+
+
+class TwinVectorCritic(nn.Module):
+    """Two independent vector critics (as SAC's clipped double Q); output ``(2, ..., reward_dim)``."""
+
+    hidden_sizes: Sequence[int]
+    reward_dim: int
+
+    @nn.compact
+    def __call__(self, obs, action, preference):
+        twins = nn.vmap(
+            VectorCritic,
+            variable_axes={"params": 0},
+            split_rngs={"params": True},
+            in_axes=None,
+            out_axes=0,
+            axis_size=2,
+        )
+        return twins(self.hidden_sizes, self.reward_dim)(obs, action, preference)
+
+
+class TanhGaussianActor(nn.Module):
+    """pi(a | s, w): a diagonal Gaussian squashed by tanh into [-1, 1]; returns ``(mean, log_std)``."""
+
+    hidden_sizes: Sequence[int]
+    action_size: int
+
+    @nn.compact
+    def __call__(self, obs, preference):
+        out = MLP(self.hidden_sizes, 2 * self.action_size)(jnp.concatenate([obs, preference], axis=-1))
+        mean, log_std = jnp.split(out, 2, axis=-1)
+        return mean, jnp.clip(log_std, LOG_STD_MIN, LOG_STD_MAX)
+
+
+def tanh_gaussian_log_prob(pre_tanh, mean, log_std):
+    """log pi(tanh(u)) for the pre-squash sample ``u``: the Gaussian log-density of u minus the log
+    Jacobian ``sum log(1 - tanh(u)^2)``, written stably as ``2 (log 2 - u - softplus(-2u))``."""
+    gaussian = -0.5 * ((pre_tanh - mean) / jnp.exp(log_std)) ** 2 - log_std - 0.5 * jnp.log(2.0 * jnp.pi)
+    log_jacobian = 2.0 * (jnp.log(2.0) - pre_tanh - jax.nn.softplus(-2.0 * pre_tanh))
+    return jnp.sum(gaussian - log_jacobian, axis=-1)
+
+
+def sample_tanh_gaussian(key, mean, log_std):
+    """A reparameterised sample ``a = tanh(mean + std * eps)`` and its log-probability."""
+    pre_tanh = mean + jnp.exp(log_std) * jax.random.normal(key, mean.shape, mean.dtype)
+    return jnp.tanh(pre_tanh), tanh_gaussian_log_prob(pre_tanh, mean, log_std)

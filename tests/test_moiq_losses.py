@@ -1,0 +1,110 @@
+"""MOIQ losses against independent formulas: IQ-Learn for one expert, the consensus penalty and its gradient."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optax
+
+from moiq_jax.algos import moiq
+from moiq_jax.networks import TanhGaussianActor, TwinVectorCritic, sample_tanh_gaussian
+
+HYPER = moiq.Hyper(gamma=0.9, alpha_reg=0.5, target_entropy=-2.0)
+NETS = moiq.Networks(TwinVectorCritic((16, 16), 2), TanhGaussianActor((16, 16), 2))
+
+
+def _learner(preferences, key=0):
+    opt = moiq.Optimisers(optax.adam(1e-3), optax.adam(1e-3), optax.adam(1e-3))
+    learner = moiq.init_learner(NETS, opt, jax.random.PRNGKey(key), 3, 2, preferences, init_alpha=0.2)
+    # A target critic different from the online one, so the test sees which is used where.
+    target = NETS.critic.init(jax.random.PRNGKey(key + 100), jnp.zeros((1, 3)), jnp.zeros((1, 2)), preferences[:1])
+    return learner.replace(params=learner.params.replace(target_critic=target)), opt
+
+
+def _batches(num_experts, per_expert, key=1):
+    k = jax.random.split(jax.random.PRNGKey(key), 4)
+    shape = (num_experts, per_expert)
+    return {
+        "obs": jax.random.normal(k[0], (*shape, 3)),
+        "action": jax.random.uniform(k[1], (*shape, 2), minval=-1, maxval=1),
+        "next_obs": jax.random.normal(k[2], (*shape, 3)),
+        "done": (jax.random.uniform(k[3], shape) < 0.2).astype(jnp.float32),
+        "is_expert": jnp.tile(jnp.arange(per_expert) < per_expert // 2, (num_experts, 1)),
+    }
+
+
+def _iq_learn_reference(params, alpha, batch, w, key):
+    """IQ-Learn's critic loss written out with scalar critics, as in its reference implementation."""
+    current_key, next_key = jax.random.split(key)
+    n = batch["obs"].shape[0]
+    ws = jnp.tile(w, (n, 1))
+
+    def scalar_v(critic_params, obs, k):
+        action, log_prob = sample_tanh_gaussian(k, *NETS.actor.apply(params.actor, obs, ws))
+        return jnp.min(NETS.critic.apply(critic_params, obs, action, ws) @ w, axis=0) - alpha * log_prob
+
+    v = scalar_v(params.critic, batch["obs"], current_key)
+    y = HYPER.gamma * (1 - batch["done"]) * scalar_v(params.target_critic, batch["next_obs"], next_key)
+    losses = []
+    for q in NETS.critic.apply(params.critic, batch["obs"], batch["action"], ws) @ w:
+        r = q - y
+        expert = batch["is_expert"]
+        losses.append(-r[expert].mean() + (v - y).mean() + (r**2).mean() / (4 * HYPER.alpha_reg))
+    return sum(losses) / 2
+
+
+def test_one_expert_loss_is_iq_learn_for_any_beta():
+    prefs = jnp.array([[0.7, 0.3]])
+    learner, _ = _learner(prefs)
+    batches = _batches(1, 8)
+    key = jax.random.PRNGKey(5)
+    expected = _iq_learn_reference(
+        learner.params, 0.2, jax.tree_util.tree_map(lambda x: x[0], batches), prefs[0], jax.random.split(key, 1)[0]
+    )
+    for beta in (0.0, 5.0):  # one expert has no neighbours: the penalty vanishes
+        loss, metrics = moiq.critic_loss(learner.params.critic, NETS, learner.params, batches, prefs, beta, key, HYPER)
+        np.testing.assert_allclose(loss, expected, rtol=1e-5)
+        assert float(metrics["penalty"]) == 0.0
+
+
+def test_penalty_is_zero_with_zero_gradient_for_equal_rewards():
+    shared = jax.random.normal(jax.random.PRNGKey(0), (6, 2))
+    rewards = jnp.stack([shared] * 3)
+    assert float(moiq.consensus_penalty(rewards)) == 0.0
+    grad = jax.grad(moiq.consensus_penalty)(rewards)
+    assert np.all(np.isfinite(grad)) and np.all(grad == 0.0)
+
+
+def test_penalty_value_and_gradient_match_closed_form():
+    rewards = np.asarray(jax.random.normal(jax.random.PRNGKey(3), (3, 5, 2)), np.float64)
+    diffs = rewards[1:] - rewards[:-1]  # (2, 5, 2)
+    norms = np.linalg.norm(diffs, axis=-1)
+    np.testing.assert_allclose(moiq.consensus_penalty(jnp.asarray(rewards)), norms.sum(0).mean(), rtol=1e-5)
+    unit = diffs / norms[..., None] / rewards.shape[1]  # d||r_{j+1} - r_j|| / d r_{j+1}, averaged over the batch
+    expected = np.zeros_like(rewards)
+    expected[1:] += unit
+    expected[:-1] -= unit
+    np.testing.assert_allclose(jax.grad(moiq.consensus_penalty)(jnp.asarray(rewards)), expected, rtol=1e-4, atol=1e-6)
+
+
+def test_critic_loss_penalty_ties_experts_and_beta_scales_it():
+    prefs = jnp.array([[0.9, 0.1], [0.5, 0.5], [0.1, 0.9]])
+    learner, _ = _learner(prefs)
+    batches, key = _batches(3, 8), jax.random.PRNGKey(2)
+    loss0, m0 = moiq.critic_loss(learner.params.critic, NETS, learner.params, batches, prefs, 0.0, key, HYPER)
+    loss5, _ = moiq.critic_loss(learner.params.critic, NETS, learner.params, batches, prefs, 5.0, key, HYPER)
+    assert float(m0["penalty"]) > 0
+    np.testing.assert_allclose(loss5 - loss0, 5.0 * m0["penalty"], rtol=1e-4)
+    np.testing.assert_allclose(loss0, m0["iq_loss"].sum(), rtol=1e-6)
+
+
+def test_update_runs_jitted_for_all_experts_and_moves_targets_slowly():
+    prefs = jnp.array([[0.9, 0.1], [0.5, 0.5], [0.1, 0.9]])
+    learner, opt = _learner(prefs)
+    step = jax.jit(lambda lrn, b, k: moiq.update(lrn, NETS, opt, b, prefs, 5.0, k, HYPER, 0.005, True))
+    new, metrics = step(learner, _batches(3, 8), jax.random.PRNGKey(4))
+    assert metrics["iq_loss"].shape == (3,) and metrics["alpha"].shape == (3,)
+    assert all(np.isfinite(float(metrics[k])) for k in ("critic_loss", "actor_loss", "penalty"))
+    old_t, new_t, new_c = (jax.tree_util.tree_leaves(p)[0] for p in (
+        learner.params.target_critic, new.params.target_critic, new.params.critic))
+    np.testing.assert_allclose(new_t, 0.995 * old_t + 0.005 * new_c, rtol=1e-5, atol=1e-7)
+    assert not np.allclose(new.params.log_alpha, learner.params.log_alpha)
