@@ -7,7 +7,7 @@ import importlib
 from moiq_jax.config import Config
 
 # algo name -> module exposing ``train(config) -> result``
-_ENTRY_POINTS: dict[str, str] = {}
+_ENTRY_POINTS: dict[str, str] = {"admm": "moiq_jax.algos.admm"}
 
 
 def train(config: Config):
