@@ -103,7 +103,7 @@ def plot(results: dict, path: str, inner_rl: str) -> None:
             for row, key in enumerate(("return", "length")):
                 values = r.metrics[key][:, :, e].astype(float)
                 ax = axes[row, col]
-                line, = ax.plot(rounds, values.mean(0), marker="o", label=f"w={np.round(w, 2).tolist()}")
+                line, = ax.plot(rounds, values.mean(0), marker="o", label=f"w={[round(float(x), 2) for x in w]}")
                 ax.fill_between(rounds, values.min(0), values.max(0), color=line.get_color(), alpha=0.2)
                 optimum = r.optimal_return[e] if key == "return" else _optimal_length(r, e)
                 ax.axhline(optimum, color=line.get_color(), linestyle="--", linewidth=1)
