@@ -45,7 +45,7 @@ def summarise(results: dict) -> dict:
             "first_round_all_seeds_optimal": int(np.argmax(optimal.all((0, 2)))) + 1 if optimal.all((0, 2)).any() else None,
             "final_reward_correlation_mean": r.metrics["reward_correlation"][:, -1].mean(0).round(3).tolist(),
             "transfer_optimal_per_seed": transfer_ok.sum(-1).tolist(),
-            "demonstrated_treasures": shown.tolist(),
+            "agent_treasures_at_round_10": shown.tolist(),
         }
     return summary
 
