@@ -11,6 +11,7 @@ import dataclasses
 from moiq_jax.preferences import check_preferences
 
 ALGORITHMS = ("admm", "moiq", "iq_learn")
+INNER_RL = ("soft_vi", "ppo")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -43,6 +44,26 @@ class Config:
     eval_interval: int = 5_000  # env steps per expert between evaluations (and best-model checks)
     eval_episodes: int = 1  # cdst and its experts are deterministic: one episode measures the return
 
+    # --- admm ---  (discrete MOIRL with consensus ADMM, paper sec. 4.1; use gamma=0.999 on DST so the
+    # discounted optimum agrees with the undiscounted front for every preference)
+    rounds: int = 10  # one round: ADMM reward update, then inner RL for every expert
+    admm_iterations: int = 10  # consensus ADMM iterations per round (eq. 7)
+    rho: float = 3.0  # ADMM penalty: 1/rho is the step size of the common reward per iteration
+    visit_metric: bool = True  # scale the ADMM penalty per state-action by its visit count (see admm.py)
+    reward_l2: float = 0.0  # lambda of the reward regulariser -(lambda/2)||r_i||^2 in the x-update
+    reward_bound: float = 5.0  # box bound |r_i| <= reward_bound, keeps the x-update finite
+    inner_rl: str = "soft_vi"  # "soft_vi" (exact, fast) or "ppo" (as in the paper)
+    temperature: float = 1.0  # entropy temperature of soft value iteration (max-ent policies)
+    ppo_iterations: int = 30  # PPO updates (rollout + epochs) per round
+    ppo_num_envs: int = 16  # parallel episodes per PPO rollout (each runs the full time limit)
+    ppo_epochs: int = 4
+    ppo_minibatches: int = 4
+    ppo_learning_rate: float = 3e-3
+    ppo_clip: float = 0.2
+    ppo_entropy: float = 0.01
+    ppo_gae_lambda: float = 0.95
+    ppo_hidden: int = 64
+
     def __post_init__(self):
         # Lists from JSON/YAML or the CLI become tuples, so configs stay hashable.
         object.__setattr__(self, "preferences", tuple(tuple(float(w) for w in p) for p in self.preferences))
@@ -62,7 +83,10 @@ class Config:
             raise ValueError(f"num_demos must be at least 1, got {self.num_demos}")
         if not 0.0 <= self.gamma < 1.0:
             raise ValueError(f"gamma must be in [0, 1), got {self.gamma}")
-        self._validate_moiq()
+        if self.algo in ("moiq", "iq_learn"):
+            self._validate_moiq()
+        if self.algo == "admm":
+            self._validate_admm()
         reward_dim = env.reward_dim if env is not None else len(self.preferences[0])
         check_preferences(self.preferences, reward_dim)
         return self
@@ -86,3 +110,17 @@ class Config:
                 raise ValueError(f"{name} ({getattr(self, name)}) must be a multiple of num_envs ({self.num_envs})")
         if self.total_steps % self.eval_interval:
             raise ValueError(f"total_steps ({self.total_steps}) must be a multiple of eval_interval ({self.eval_interval})")
+
+    def _validate_admm(self) -> None:
+        positive = ("rounds", "admm_iterations", "rho", "reward_bound", "temperature", "ppo_iterations",
+                    "ppo_num_envs", "ppo_epochs", "ppo_minibatches", "ppo_learning_rate", "ppo_clip", "ppo_hidden")
+        for name in positive:
+            if not getattr(self, name) > 0:
+                raise ValueError(f"{name} must be positive, got {getattr(self, name)}")
+        if self.reward_l2 < 0 or self.ppo_entropy < 0 or not 0 <= self.ppo_gae_lambda <= 1:
+            raise ValueError("reward_l2 and ppo_entropy must be >= 0 and ppo_gae_lambda in [0, 1], got "
+                             f"{self.reward_l2}, {self.ppo_entropy}, {self.ppo_gae_lambda}")
+        if self.inner_rl not in INNER_RL:
+            raise ValueError(f"unknown inner_rl {self.inner_rl!r}; choose one of {', '.join(INNER_RL)}")
+        if not self.env.startswith("dst"):
+            raise ValueError(f"algo 'admm' is tabular and needs a discrete DST env, got {self.env!r}")

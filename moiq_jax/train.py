@@ -8,6 +8,7 @@ from moiq_jax.config import Config
 
 # algo name -> module exposing ``train(config) -> result``
 _ENTRY_POINTS: dict[str, str] = {
+    "admm": "moiq_jax.algos.admm",
     "moiq": "moiq_jax.algos.moiq_train",
     "iq_learn": "moiq_jax.algos.moiq_train",  # the same program with one model per expert and beta = 0
 }

@@ -121,6 +121,8 @@ class Demonstrations:
         """Read a file written by ``save`` and validate it (against ``env`` when given)."""
         if not os.path.exists(path):
             raise FileNotFoundError(f"demos file {os.fspath(path)!r} does not exist")
+        if not zipfile.is_zipfile(path):  # np.load would call other bytes "pickled data"
+            raise ValueError(f"demos file {os.fspath(path)!r} is corrupt or not a .npz written by moiq_jax")
         try:
             with np.load(path, allow_pickle=False) as data:
                 missing = [name for name in (*ARRAY_FIELDS, "metadata") if name not in data.files]

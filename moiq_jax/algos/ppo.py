@@ -1,0 +1,125 @@
+"""PPO for the inner RL of the consensus-ADMM rounds (the paper's choice), on a tabular reward.
+
+The agent is a small flax actor-critic on one-hot states. Episodes are sampled from the exact tabular
+dynamics (``TabularMDP``, the same transitions as the env's ``step`` with the absorbing state), each running
+the full time limit; the reward is the learned scalarised table. All functions are pure, so the caller
+vmaps them over experts and seeds.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import flax.linen as nn
+import jax
+import jax.numpy as jnp
+import optax
+
+from moiq_jax.algos.tabular import TabularMDP
+from moiq_jax.config import Config
+
+
+class ActorCritic(nn.Module):
+    """Action logits and state value from a one-hot state."""
+
+    num_actions: int
+    hidden: int
+
+    @nn.compact
+    def __call__(self, state_one_hot):
+        h = nn.tanh(nn.Dense(self.hidden)(state_one_hot))
+        h = nn.tanh(nn.Dense(self.hidden)(h))
+        logits = nn.Dense(self.num_actions, kernel_init=nn.initializers.orthogonal(0.01))(h)
+        return logits, nn.Dense(1)(h)[..., 0]
+
+
+class PPOAgent(NamedTuple):
+    params: dict
+    opt_state: optax.OptState
+
+
+class Batch(NamedTuple):
+    states: jax.Array
+    actions: jax.Array
+    log_probs: jax.Array
+    advantages: jax.Array
+    returns: jax.Array
+
+
+def ppo_agent(mdp: TabularMDP, config: Config):
+    """An ``InnerRL`` running ``config.ppo_iterations`` PPO updates per round, warm-started across rounds."""
+    from moiq_jax.algos.admm import InnerRL
+
+    net = ActorCritic(mdp.num_actions, config.ppo_hidden)
+    optimiser = optax.chain(optax.clip_by_global_norm(0.5), optax.adam(config.ppo_learning_rate))
+    one_hot = jnp.eye(mdp.num_states)
+    batch_size = config.ppo_num_envs * mdp.horizon
+    minibatch = batch_size // config.ppo_minibatches
+
+    def init(key):
+        params = net.init(key, one_hot[0])
+        return PPOAgent(params, optimiser.init(params))
+
+    def policy(agent):
+        return jax.nn.softmax(net.apply(agent.params, one_hot)[0], axis=-1)
+
+    def rollout(params, reward, key):
+        """``ppo_num_envs`` episodes from the start state; GAE advantages with bootstrap at the time limit."""
+
+        def step(states, key):
+            logits, values = net.apply(params, one_hot[states])
+            actions = jax.random.categorical(key, logits)
+            log_probs = jax.nn.log_softmax(logits)[jnp.arange(states.shape[0]), actions]
+            return mdp.next_state[states, actions], (states, actions, log_probs, values, reward[states, actions])
+
+        start = jnp.full((config.ppo_num_envs,), mdp.start)
+        last, (states, actions, log_probs, values, rewards) = jax.lax.scan(
+            step, start, jax.random.split(key, mdp.horizon)
+        )
+        last_value = net.apply(params, one_hot[last])[1]
+
+        def gae(carry, xs):
+            advantage, next_value = carry
+            value, r = xs
+            delta = r + config.gamma * next_value - value
+            advantage = delta + config.gamma * config.ppo_gae_lambda * advantage
+            return (advantage, value), advantage
+
+        _, advantages = jax.lax.scan(gae, (jnp.zeros_like(last_value), last_value), (values, rewards), reverse=True)
+        flat = lambda x: x.reshape(batch_size)
+        return Batch(flat(states), flat(actions), flat(log_probs), flat(advantages), flat(advantages + values))
+
+    def loss(params, batch):
+        logits, values = net.apply(params, one_hot[batch.states])
+        log_all = jax.nn.log_softmax(logits)
+        log_probs = jnp.take_along_axis(log_all, batch.actions[:, None], axis=-1)[:, 0]
+        ratio = jnp.exp(log_probs - batch.log_probs)
+        adv = (batch.advantages - batch.advantages.mean()) / (batch.advantages.std() + 1e-8)
+        clipped = jnp.clip(ratio, 1 - config.ppo_clip, 1 + config.ppo_clip)
+        policy_loss = -jnp.minimum(ratio * adv, clipped * adv).mean()
+        value_loss = 0.5 * ((values - batch.returns) ** 2).mean()
+        entropy = -(jnp.exp(log_all) * log_all).sum(-1).mean()
+        return policy_loss + 0.5 * value_loss - config.ppo_entropy * entropy
+
+    def update(agent, key, reward):
+        rollout_key, shuffle_key = jax.random.split(key)
+        batch = rollout(agent.params, reward, rollout_key)
+
+        def epoch(agent, key):
+            order = jax.random.permutation(key, batch_size).reshape(config.ppo_minibatches, minibatch)
+
+            def minibatch_step(agent, idx):
+                grads = jax.grad(loss)(agent.params, jax.tree_util.tree_map(lambda x: x[idx], batch))
+                updates, opt_state = optimiser.update(grads, agent.opt_state, agent.params)
+                return PPOAgent(optax.apply_updates(agent.params, updates), opt_state), None
+
+            return jax.lax.scan(minibatch_step, agent, order)[0], None
+
+        return jax.lax.scan(epoch, agent, jax.random.split(shuffle_key, config.ppo_epochs))[0], None
+
+    def improve(agent, reward, key):
+        return jax.lax.scan(lambda a, k: update(a, k, reward), agent, jax.random.split(key, config.ppo_iterations))[0]
+
+    if batch_size % config.ppo_minibatches:
+        raise ValueError(f"ppo_num_envs * horizon = {batch_size} must be divisible by ppo_minibatches")
+    return InnerRL(init=init, improve=improve, policy=policy)

@@ -1,0 +1,43 @@
+"""Demonstrations recorded from the DST oracle: save/load round trip and clear errors on bad files."""
+
+import jax
+import numpy as np
+import pytest
+
+from moiq_jax import Demonstrations, envs
+from moiq_jax.experts import record_demonstrations
+
+
+@pytest.fixture(scope="module")
+def demos():
+    return record_demonstrations("dst-mini", [[0.9, 0.1], [0.1, 0.9]], 4, jax.random.PRNGKey(0))
+
+
+def test_round_trip(tmp_path, demos):
+    path = tmp_path / "demos.npz"
+    demos.save(path)
+    loaded = Demonstrations.load(path, envs.make("dst-mini", absorbing=True))
+    for name in ("obs", "actions", "next_obs", "rewards", "dones", "lengths", "preferences"):
+        np.testing.assert_array_equal(np.asarray(getattr(loaded, name)), np.asarray(getattr(demos, name)))
+    assert loaded.env == "dst-mini" and loaded.metadata["expert"] == "dst_oracle"
+    np.testing.assert_allclose(loaded.episode_returns()[:, 0], [[16.8, -10.0], [1.0, -1.0]], atol=1e-5)
+
+
+def test_bad_files_give_clear_errors(tmp_path, demos):
+    with pytest.raises(FileNotFoundError, match="does not exist"):
+        Demonstrations.load(tmp_path / "missing.npz")
+    garbage = tmp_path / "garbage.npz"
+    garbage.write_bytes(b"not a zip file")
+    with pytest.raises(ValueError, match="corrupt"):
+        Demonstrations.load(garbage)
+    partial = tmp_path / "partial.npz"
+    np.savez(partial, obs=np.asarray(demos.obs))
+    with pytest.raises(ValueError, match="lacks"):
+        Demonstrations.load(partial)
+    path = tmp_path / "demos.npz"
+    demos.save(path)
+    with pytest.raises(ValueError, match="absorbing"):  # recorded with the absorbing flag, loaded without
+        Demonstrations.load(path, envs.make("dst-mini"))
+    bad = demos.replace(preferences=np.array([[0.9, 0.3], [0.1, 0.9]], np.float32))
+    with pytest.raises(ValueError, match="sum to 1"):
+        bad.save(tmp_path / "bad.npz")
