@@ -34,6 +34,7 @@ class Config:
     batch_size: int = 256  # expert samples per expert and update, and as many policy samples
     buffer_size: int = 100_000  # replay capacity per expert
     hidden_sizes: tuple[int, ...] = (256, 256)
+    action_scale: float = 1.0  # policy actions clip(action_scale * tanh(u), -1, 1); see networks.sample_action
     critic_lr: float = 3e-4
     actor_lr: float = 3e-5
     alpha_lr: float = 3e-4
@@ -95,7 +96,7 @@ class Config:
         if self.beta < 0:
             raise ValueError(f"beta must be non-negative, got {self.beta}")
         positive = ("total_steps", "num_envs", "updates_per_step", "batch_size", "buffer_size", "eval_interval",
-                    "eval_episodes", "critic_lr", "actor_lr", "alpha_lr", "init_alpha", "alpha_reg")
+                    "eval_episodes", "critic_lr", "actor_lr", "alpha_lr", "init_alpha", "alpha_reg", "action_scale")
         for name in positive:
             if not getattr(self, name) > 0:
                 raise ValueError(f"{name} must be positive, got {getattr(self, name)}")

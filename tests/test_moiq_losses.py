@@ -6,7 +6,7 @@ import numpy as np
 import optax
 
 from moiq_jax.algos import moiq
-from moiq_jax.networks import TanhGaussianActor, TwinVectorCritic, sample_tanh_gaussian
+from moiq_jax.networks import TanhGaussianActor, TwinVectorCritic, sample_tanh_gaussian, tanh_gaussian_log_prob
 
 HYPER = moiq.Hyper(gamma=0.9, alpha_reg=0.5, target_entropy=-2.0)
 NETS = moiq.Networks(TwinVectorCritic((16, 16), 2), TanhGaussianActor((16, 16), 2))
@@ -95,6 +95,32 @@ def test_critic_loss_penalty_ties_experts_and_beta_scales_it():
     assert float(m0["penalty"]) > 0
     np.testing.assert_allclose(loss5 - loss0, 5.0 * m0["penalty"], rtol=1e-4)
     np.testing.assert_allclose(loss0, m0["iq_loss"].sum(), rtol=1e-6)
+
+
+def test_penalty_compares_every_experts_rewards_on_the_shared_rows():
+    """The penalty's common batch is rows 0 and 6 of each expert's 8 (every 2E-th); expert j's rewards
+    there are ``Q(s, a, w_j) - gamma (1 - done) V_target(s', w_j)`` with a' drawn, as for its own rows, from
+    the noise of one pass over its own rows followed by the common ones."""
+    prefs = jnp.array([[0.9, 0.1], [0.5, 0.5], [0.1, 0.9]])
+    learner, _ = _learner(prefs)
+    params, batches, key = learner.params, _batches(3, 8), jax.random.PRNGKey(7)
+    common = {k: batches[k][:, ::6].reshape(6, *batches[k].shape[2:]) for k in ("obs", "action", "next_obs", "done")}
+    np.testing.assert_array_equal(common["obs"][1], batches["obs"][0, 6])
+    rewards = []
+    for j, expert_key in enumerate(jax.random.split(key, 3)):
+        rows = {k: jnp.concatenate([batches[k][j], common[k]]) for k in common}
+        ws = jnp.tile(prefs[j], (14, 1))
+        mean, log_std = NETS.actor.apply(params.actor, rows["next_obs"], ws)
+        pre_tanh = mean + jnp.exp(log_std) * jax.random.normal(jax.random.split(expert_key)[1], mean.shape)
+        q_next = NETS.critic.apply(params.target_critic, rows["next_obs"], jnp.tanh(pre_tanh), ws)  # (2, 14, 2)
+        q_next = jnp.where((q_next[0] @ prefs[j] <= q_next[1] @ prefs[j])[:, None], q_next[0], q_next[1])
+        v_next = q_next - 0.2 * tanh_gaussian_log_prob(pre_tanh, mean, log_std)[:, None]
+        r = NETS.critic.apply(params.critic, rows["obs"], rows["action"], ws) - HYPER.gamma * (
+            1 - rows["done"])[:, None] * v_next
+        rewards.append(np.asarray(r[:, 8:]))  # (2 twins, 6 common rows, 2)
+    expected = np.mean(sum(np.linalg.norm(rewards[j + 1] - rewards[j], axis=-1) for j in range(2)))
+    _, metrics = moiq.critic_loss(params.critic, NETS, params, batches, prefs, 5.0, key, HYPER)
+    np.testing.assert_allclose(metrics["penalty"], expected, rtol=1e-4)
 
 
 def test_update_runs_jitted_for_all_experts_and_moves_targets_slowly():

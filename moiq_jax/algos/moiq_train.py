@@ -26,7 +26,7 @@ from moiq_jax.config import Config
 from moiq_jax.envs.wrappers import AutoReset, VmapWrapper
 from moiq_jax.evaluate import episode_returns
 from moiq_jax.experts import Demonstrations
-from moiq_jax.networks import TanhGaussianActor, TwinVectorCritic, sample_tanh_gaussian
+from moiq_jax.networks import TanhGaussianActor, TwinVectorCritic
 
 
 @struct.dataclass
@@ -96,15 +96,11 @@ def make_train(config: Config, demos: Demonstrations | None = None) -> Trainer:
     env = envs.make(config.env, absorbing=True)
     rollout_env = VmapWrapper(AutoReset(env), config.num_envs)
     nets = moiq.Networks(TwinVectorCritic(config.hidden_sizes, env.reward_dim),
-                         TanhGaussianActor(config.hidden_sizes, env.action_size))
+                         TanhGaussianActor(config.hidden_sizes, env.action_size), config.action_scale)
     optimisers = moiq.Optimisers(optax.adam(config.critic_lr), optax.adam(config.actor_lr), optax.adam(config.alpha_lr))
     hyper = moiq.Hyper(config.gamma, config.alpha_reg, -float(env.action_size))
     iterations_per_chunk = config.eval_interval // config.num_envs
     num_chunks = config.total_steps // config.eval_interval
-
-    def policy_action(actor_params, obs, preference, key):
-        w = jnp.broadcast_to(preference, (obs.shape[0], preference.shape[-1]))
-        return sample_tanh_gaussian(key, *nets.actor.apply(actor_params, obs, w))[0]
 
     def init(key, prefs):
         num_experts = prefs.shape[0]
@@ -135,7 +131,7 @@ def make_train(config: Config, demos: Demonstrations | None = None) -> Trainer:
         key, act_key, random_key, update_key = jax.random.split(state.key, 4)
         num_experts = prefs.shape[0]
         obs = state.env_state.obs  # [E, num_envs, obs]
-        learned = jax.vmap(policy_action, in_axes=(None, 0, 0, 0))(
+        learned, _ = jax.vmap(nets.sample, in_axes=(None, 0, 0, 0))(
             state.learner.params.actor, obs, prefs, jax.random.split(act_key, num_experts))
         random = jax.random.uniform(random_key, learned.shape, minval=-1.0, maxval=1.0)
         action = jnp.where(state.env_steps < config.learning_starts, random, learned)
@@ -166,8 +162,7 @@ def make_train(config: Config, demos: Demonstrations | None = None) -> Trainer:
         """Deterministic-policy vector returns per preference and the recovered-reward correlation."""
         def one(preference, k):
             def policy(_, obs):
-                mean, _ = nets.actor.apply(params.actor, obs[None], preference[None])
-                return jnp.tanh(mean[0])
+                return nets.act(params.actor, obs[None], preference)[0]
 
             return episode_returns(env, policy, k, config.eval_episodes)["returns"].mean(0)
 
