@@ -49,20 +49,47 @@ class Networks(NamedTuple):
 
 @struct.dataclass
 class Params:
-    """critic, target_critic: twin vector critics; actor; log_alpha: ``[E]`` one temperature per expert."""
+    """critic, target_critic: twin vector critics; actor; log_alpha: ``[E]`` one temperature per expert;
+    action_scale (static): the actor's, so ``networks_for`` can rebuild the policy from the parameters."""
 
     critic: Any
     target_critic: Any
     actor: Any
     log_alpha: jax.Array
+    action_scale: float = struct.field(pytree_node=False, default=1.0)
+
+
+def _layer_sizes(module_params) -> list[tuple[int, int]]:
+    """(inputs, outputs) of each Dense layer of an MLP's parameters, in order (a twin axis is ignored)."""
+    mlp = module_params
+    while "Dense_0" not in mlp:  # {"params": {"MLP_0": {...}}}, or with the twins' vmap level between
+        (mlp,) = mlp.values()
+    layers = sorted(mlp, key=lambda name: int(name.split("_")[1]))
+    return [tuple(mlp[name]["kernel"].shape[-2:]) for name in layers]
+
+
+def networks_for(params: Params) -> Networks:
+    """The networks ``params`` belong to, read from their shapes: hidden sizes, action and reward sizes."""
+    actor_layers, critic_layers = _layer_sizes(params.actor), _layer_sizes(params.critic)
+    hidden = tuple(out for _, out in actor_layers[:-1])
+    return Networks(TwinVectorCritic(hidden, critic_layers[-1][1]), TanhGaussianActor(hidden, actor_layers[-1][1] // 2),
+                    params.action_scale)
+
+
+def observation_size(params: Params) -> int:
+    """The observation size the actor of ``params`` takes (its input is the observation and the preference)."""
+    return _layer_sizes(params.actor)[0][0] - _layer_sizes(params.critic)[-1][1]
 
 
 class Hyper(NamedTuple):
-    """The loss constants that are not swept: discount, chi^2 regulariser strength, entropy target."""
+    """The loss constants that are not swept: discount, chi^2 regulariser strength, entropy target, and
+    whether V(s') comes from the target critic without gradient (else the online critic, with gradient,
+    as IQ-Learn's default ``use_target=False``)."""
 
     gamma: float
     alpha_reg: float
     target_entropy: float
+    use_target: bool = True
 
 
 def soft_value(nets: Networks, critic_params, actor_params, alpha, obs, preference, key):
@@ -75,14 +102,18 @@ def soft_value(nets: Networks, critic_params, actor_params, alpha, obs, preferen
     return q_min - alpha * log_prob[:, None]
 
 
-def recovered_rewards(nets: Networks, critic_params, params: Params, alpha, batch, preference, key, gamma):
+def recovered_rewards(nets: Networks, critic_params, params: Params, alpha, batch, preference, key, gamma,
+                      use_target: bool = True):
     """For preference w on ``batch`` (N transitions): the recovered vector rewards of both twins,
-    ``r_k = Q_k(s, a, w) - gamma (1 - done) V_target(s', w)``, ``(2, N, d)``, and the discounted next values
-    ``gamma (1 - done) V_target(s', w)``, ``(N, d)``. V(s') samples a' with ``key``, uses the target critic
-    and carries no gradient."""
+    ``r_k = Q_k(s, a, w) - gamma (1 - done) V(s', w)``, ``(2, N, d)``, and the discounted next values
+    ``gamma (1 - done) V(s', w)``, ``(N, d)``. V(s') samples a' with ``key``; it uses the target critic and
+    carries no gradient if ``use_target``, else the online critic ``critic_params``, with gradient."""
     q = nets.critic.apply(critic_params, batch["obs"], batch["action"], _tile(preference, batch["obs"].shape[0]))
-    next_value = soft_value(nets, params.target_critic, params.actor, alpha, batch["next_obs"], preference, key)
-    discounted_next = jax.lax.stop_gradient(gamma * (1.0 - batch["done"])[:, None] * next_value)
+    next_critic = params.target_critic if use_target else critic_params
+    next_value = soft_value(nets, next_critic, params.actor, alpha, batch["next_obs"], preference, key)
+    discounted_next = gamma * (1.0 - batch["done"])[:, None] * next_value
+    if use_target:
+        discounted_next = jax.lax.stop_gradient(discounted_next)
     return q - discounted_next, discounted_next
 
 
@@ -134,7 +165,7 @@ def critic_loss(critic_params, nets: Networks, params: Params, batches, preferen
         value_key, next_key = jax.random.split(key)
         rows = own if common is None else jax.tree_util.tree_map(lambda a, b: jnp.concatenate([a, b]), own, common)
         rewards, discounted_next = recovered_rewards(nets, critic_params, params, alpha, rows, preference,
-                                                     next_key, hyper.gamma)
+                                                     next_key, hyper.gamma, hyper.use_target)
         value = soft_value(nets, critic_params, params.actor, alpha, own["obs"], preference, value_key)
         return rewards[:, :per_expert], value - discounted_next[:per_expert], rewards[:, per_expert:]
 
@@ -199,7 +230,8 @@ def init_learner(nets: Networks, optimisers: Optimisers, key, obs_size, action_s
     critic = nets.critic.init(critic_key, obs, action, w)
     actor = nets.actor.init(actor_key, obs, w)
     log_alpha = jnp.full((preferences.shape[0],), jnp.log(init_alpha), jnp.float32)
-    params = Params(critic=critic, target_critic=critic, actor=actor, log_alpha=log_alpha)
+    params = Params(critic=critic, target_critic=critic, actor=actor, log_alpha=log_alpha,
+                    action_scale=nets.action_scale)
     return Learner(params, optimisers.critic.init(critic), optimisers.actor.init(actor), optimisers.alpha.init(log_alpha))
 
 

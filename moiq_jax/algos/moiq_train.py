@@ -24,7 +24,7 @@ from moiq_jax import envs, replay
 from moiq_jax.algos import moiq
 from moiq_jax.config import Config
 from moiq_jax.envs.wrappers import AutoReset, VmapWrapper
-from moiq_jax.evaluate import episode_returns
+from moiq_jax.evaluate import preference_returns
 from moiq_jax.experts import Demonstrations
 from moiq_jax.networks import TanhGaussianActor, TwinVectorCritic
 
@@ -98,7 +98,7 @@ def make_train(config: Config, demos: Demonstrations | None = None) -> Trainer:
     nets = moiq.Networks(TwinVectorCritic(config.hidden_sizes, env.reward_dim),
                          TanhGaussianActor(config.hidden_sizes, env.action_size), config.action_scale)
     optimisers = moiq.Optimisers(optax.adam(config.critic_lr), optax.adam(config.actor_lr), optax.adam(config.alpha_lr))
-    hyper = moiq.Hyper(config.gamma, config.alpha_reg, -float(env.action_size))
+    hyper = moiq.Hyper(config.gamma, config.alpha_reg, -float(env.action_size), config.use_target)
     iterations_per_chunk = config.eval_interval // config.num_envs
     num_chunks = config.total_steps // config.eval_interval
 
@@ -160,14 +160,8 @@ def make_train(config: Config, demos: Demonstrations | None = None) -> Trainer:
 
     def evaluate_params(params, prefs, expert_data, key):
         """Deterministic-policy vector returns per preference and the recovered-reward correlation."""
-        def one(preference, k):
-            def policy(_, obs):
-                return nets.act(params.actor, obs[None], preference)[0]
-
-            return episode_returns(env, policy, k, config.eval_episodes)["returns"].mean(0)
-
-        keys = jax.random.split(key, prefs.shape[0] + 1)
-        returns = jax.vmap(one)(prefs, keys[1:])
+        keys = jax.random.split(key)
+        returns = preference_returns(nets, params.actor, env, prefs, keys[1], config.eval_episodes).mean(axis=1)
         alphas = jnp.exp(params.log_alpha)
 
         def correlation(data_i, preference, alpha, k):
@@ -237,8 +231,9 @@ class TrainResult:
     seconds: float
 
 
-def train(config: Config, demos: Demonstrations | None = None, log=print) -> TrainResult:
-    """Run Algorithm 1 for ``config``: jitted chunks of ``eval_interval`` env steps, logged in between."""
+def train(config: Config, demos: Demonstrations | None = None, log=print, until=None) -> TrainResult:
+    """Run Algorithm 1 for ``config``: jitted chunks of ``eval_interval`` env steps, logged in between;
+    with ``until``, stop after the first evaluation whose metrics (a dict of arrays) it holds true for."""
     trainer = make_train(config, demos)
     start = time.perf_counter()
     state = jax.jit(trainer.init)(jax.random.PRNGKey(config.seed))
@@ -254,6 +249,8 @@ def train(config: Config, demos: Demonstrations | None = None, log=print) -> Tra
             returns = np.round(np.asarray(metrics["eval_scalar_return"]), 2).tolist()
             log(f"[{config.algo} beta={config.beta}] steps {steps}: scalarised returns {returns} "
                 f"({time.perf_counter() - start:.0f}s)")
+        if until is not None and until(metrics):
+            break
     stacked = {k: np.stack([h[k] for h in history]) for k in history[0]}
     return TrainResult(config, state.learner.params, state.best_params, np.asarray(state.best_return),
                        stacked, time.perf_counter() - start)
