@@ -3,6 +3,7 @@ each as vmapped sweeps; the paper's Figure 2 (learning curves), Table 1 (best mo
 (transfer over 19 preferences, beside the true Pareto front).
 
     PYTHONPATH=. python experiments/cdst_moiq.py [--seeds 5] [--steps 100000] [--out results/cdst_moiq]
+        [--save sweeps.pkl | --reuse sweeps.pkl]   (keep the trained sweeps / redo only the outputs)
 
 Outputs under ``--out``: ``curves.png``, ``curves.npz`` (evaluation history of every run),
 ``best_models.csv`` / ``.json`` (best model's returns per method, seed and preference, exact expert
@@ -17,6 +18,7 @@ import argparse
 import csv
 import json
 import pathlib
+import pickle
 import time
 
 import jax
@@ -59,6 +61,8 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, default=5)
     parser.add_argument("--steps", type=int, default=100_000, help="env steps per expert")
     parser.add_argument("--out", default="results/cdst_moiq")
+    parser.add_argument("--reuse", metavar="PICKLE", help="load the sweeps from this file instead of training")
+    parser.add_argument("--save", metavar="PICKLE", help="save the sweeps' raw results to this file")
     args = parser.parse_args()
     out = pathlib.Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -71,9 +75,14 @@ def main() -> None:
     seeds = list(range(args.seeds))
 
     start = time.perf_counter()
-    moiq_sweep = moiq_train.sweep(config, beta=[5.0, 0.0], seed=seeds, demos=demos)
-    iq_sweep = moiq_train.sweep(config.replace(algo="iq_learn", beta=0.0), seed=seeds, demos=demos)
-    train_seconds = time.perf_counter() - start
+    if args.reuse:
+        moiq_sweep, iq_sweep, train_seconds = pickle.loads(pathlib.Path(args.reuse).read_bytes())
+    else:
+        moiq_sweep = moiq_train.sweep(config, beta=[5.0, 0.0], seed=seeds, demos=demos)
+        iq_sweep = moiq_train.sweep(config.replace(algo="iq_learn", beta=0.0), seed=seeds, demos=demos)
+        train_seconds = time.perf_counter() - start
+    if args.save:
+        pathlib.Path(args.save).write_bytes(pickle.dumps(jax.device_get((moiq_sweep, iq_sweep, train_seconds))))
     print(f"trained 3 methods x {len(seeds)} seeds for {args.steps} env steps per expert in {train_seconds:.0f} s")
 
     split = len(seeds)  # the MOIQ sweep's runs are beta 5 (seeds...), then beta 0 (seeds...)
@@ -88,12 +97,13 @@ def main() -> None:
     for e, ax in enumerate(axes):
         for method in METHODS:
             history = swept[method]["history"]
-            steps = history["env_steps"][0].reshape(-1)[: history["eval_scalar_return"].shape[1]]
+            steps = history["env_steps"][0]  # [evals], or [evals, models] for IQ-Learn
+            steps = steps[:, 0] if steps.ndim > 1 else steps
             curve = history["eval_scalar_return"][:, :, e]
-            ax.plot(steps, curve.mean(0), label=method)
+            ax.plot(steps, curve.mean(0), marker=".", label=method)
             ax.fill_between(steps, curve.mean(0) - curve.std(0), curve.mean(0) + curve.std(0), alpha=0.2)
         ax.axhline(expert_scalar[e], color="k", linestyle="--", label="expert")
-        ax.set(title=f"cdst {preferences[e].round(2).tolist()}", xlabel="env steps per expert",
+        ax.set(title=f"cdst [{preferences[e][0]:.2f}, {preferences[e][1]:.2f}]", xlabel="env steps per expert",
                ylabel="scalarised return", ylim=(max(-20.0, ax.get_ylim()[0]), None))
     axes[0].legend()
     fig.tight_layout()
@@ -125,7 +135,7 @@ def main() -> None:
     front = moiq_jax.envs.make("cdst").unwrapped.pareto_front()
     optimal = np.stack([optimal_for(front, w) for w in TRANSFER_PREFERENCES])
     transfer_rows = []
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
+    fig, axes = plt.subplots(1, 2, figsize=(12, 4.6), layout="constrained")
     for ax, method in zip(axes, METHODS[:2]):
         params = swept[method]["best_params"]
         transfer = np.stack([moiq_jax.evaluate(run_index(params, r), "cdst", TRANSFER_PREFERENCES)
@@ -141,7 +151,7 @@ def main() -> None:
         mean = transfer.mean(0)
         points = ax.scatter(mean[:, 1], mean[:, 0], c=TRANSFER_PREFERENCES[:, 0], cmap="viridis", zorder=3,
                             label="policy (mean over seeds)")
-        ax.set(title=f"{method}: {hits.sum(1).tolist()} of 19 Pareto-optimal per seed", xlabel="step cost return",
+        ax.set(title=f"{method}\nPareto-optimal of 19, per seed: {hits.sum(1).tolist()}", xlabel="step cost return",
                ylabel="treasure return")
         ax.legend(loc="lower left")
     fig.colorbar(points, ax=axes, label="preference weight of treasure")

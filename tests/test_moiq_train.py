@@ -22,8 +22,8 @@ def demos():
 
 
 @pytest.fixture(scope="module")
-def trained():
-    return moiq_jax.train(TINY.replace(action_scale=1.1), log=None)
+def trained(demos):
+    return moiq_train.train(TINY.replace(action_scale=1.1), demos, log=None)
 
 
 def test_train_smoke_moiq(trained):

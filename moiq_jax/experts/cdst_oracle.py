@@ -1,7 +1,7 @@
 """Continuous-DST experts: the exact optimal deterministic policy for each preference, and their
 demonstrations recorded in the absorbing-state env so every episode has the same length (sec. 4.1.1).
 
-Many shortest paths reach a treasure; the experts take one that keeps clear of hazards (``clear_policy``),
+Many shortest paths reach a treasure; the experts take one that keeps clear of hazards (``clear_actions``),
 so that a learner imitating them up to small action errors does not fall into a neighbouring treasure or
 against rock: every path point lies on the lattice, and a point on a cell border next to a hazard is
 lost to the smallest error to that side.
@@ -10,12 +10,10 @@ lost to the smallest error to that side.
 from __future__ import annotations
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 
 from moiq_jax import envs
-from moiq_jax.envs.cdst import RESOLUTION
-from moiq_jax.envs.dst import KING_MOVES
+from moiq_jax.envs.cdst import RESOLUTION, lattice_policy
 from moiq_jax.experts.demonstrations import Demonstrations
 from moiq_jax.preferences import check_preferences
 
@@ -43,34 +41,10 @@ def hazards_near(sea_map, point, treasure) -> int:
 
 
 def clear_actions(env, treasure) -> np.ndarray:
-    """Table over lattice points of king-move actions on a shortest path to ``treasure`` (zeros where
-    none), choosing among the shortest moves the one whose next point touches the fewest hazards."""
+    """Table over lattice points of king-move actions on a shortest path to ``treasure``, choosing among
+    the shortest moves the one whose next point touches the fewest hazards (``hazards_near``)."""
     sea_map = env.unwrapped.sea_map
-    dist = sea_map.distances_to(tuple(treasure), KING_MOVES, RESOLUTION)
-    height, width = dist.shape
-    table = np.zeros((height, width, 2), np.float32)
-    for y in range(height):
-        for x in range(width):
-            if dist[y, x] <= 0:
-                continue
-            moves = [(dy, dx) for dy, dx in KING_MOVES if 0 <= y + dy < height and 0 <= x + dx < width
-                     and dist[y + dy, x + dx] == dist[y, x] - 1]
-            if moves:
-                table[y, x] = min(moves, key=lambda m: hazards_near(sea_map, (y + m[0], x + m[1]), treasure))
-    return table
-
-
-def clear_policy(env, treasure):
-    """A deterministic jittable policy ``position -> action`` that reaches ``treasure`` in the fewest steps
-    along the hazard-clear shortest path of ``clear_actions``."""
-    table = jnp.asarray(clear_actions(env, treasure))
-    limit = jnp.array(table.shape[:2]) - 1
-
-    def policy(position):
-        point = jnp.clip(jnp.floor(RESOLUTION * position).astype(jnp.int32), 0, limit)
-        return table[point[0], point[1]]
-
-    return policy
+    return env.unwrapped.optimal_actions(treasure, prefer=lambda point: hazards_near(sea_map, point, treasure))
 
 
 def expert_returns(preferences) -> np.ndarray:
@@ -98,7 +72,7 @@ def record_demonstrations(preferences, num_demos: int = 10) -> Demonstrations:
         _, trajectory = jax.lax.scan(step, env.reset(jax.random.PRNGKey(0)), None, length=horizon)
         return trajectory
 
-    per_expert = [record(clear_policy(env, best_treasure(env, w)[0])) for w in prefs]
+    per_expert = [record(lattice_policy(clear_actions(env, best_treasure(env, w)[0]))) for w in prefs]
     obs, actions, next_obs, rewards, dones = (
         np.repeat(np.stack([np.asarray(t[i]) for t in per_expert])[:, None], num_demos, axis=1) for i in range(5)
     )
