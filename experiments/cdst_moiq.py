@@ -51,6 +51,10 @@ def best_model_returns(method, swept, preferences) -> np.ndarray:
     return np.stack([moiq_jax.evaluate(run_index(swept["best_params"], r), "cdst", preferences) for r in range(runs)])
 
 
+def rounded(x) -> list:
+    return np.round(np.asarray(x, np.float64), 4).tolist()
+
+
 def optimal_for(front: np.ndarray, preference) -> np.ndarray:
     """The front point maximising ``preference . return``."""
     return front[np.argmax(front @ preference)]
@@ -117,14 +121,14 @@ def main() -> None:
         scalar = (returns * preferences).sum(-1)
         exact = np.isclose(scalar, expert_scalar, atol=1e-3)
         summary[method] = {"seeds_with_all_expert_returns": int(exact.all(1).sum()),
-                           "mean_scalarised_return": scalar.mean(0).tolist(), "std": scalar.std(0).tolist()}
+                           "mean_scalarised_return": rounded(scalar.mean(0)), "std": rounded(scalar.std(0))}
         for r, seed in enumerate(seeds):
             for e, w in enumerate(preferences):
-                rows.append({"method": method, "seed": seed, "preference": w.round(2).tolist(),
-                             "scalarised_return": round(float(scalar[r, e]), 4),
-                             "vector_return": returns[r, e].round(4).tolist(),
-                             "expert_scalarised_return": round(float(expert_scalar[e]), 4),
-                             "expert_vector_return": expert[e].round(4).tolist(), "expert_level": bool(exact[r, e])})
+                rows.append({"method": method, "seed": seed, "preference": rounded(w),
+                             "scalarised_return": rounded(scalar[r, e]),
+                             "vector_return": rounded(returns[r, e]),
+                             "expert_scalarised_return": rounded(expert_scalar[e]),
+                             "expert_vector_return": rounded(expert[e]), "expert_level": bool(exact[r, e])})
     with open(out / "best_models.csv", "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=list(rows[0]))
         writer.writeheader()
@@ -144,9 +148,9 @@ def main() -> None:
         summary[method]["transfer_pareto_optimal_per_seed"] = hits.sum(1).tolist()
         for r, seed in enumerate(seeds):
             for k, w in enumerate(TRANSFER_PREFERENCES):
-                transfer_rows.append({"method": method, "seed": seed, "preference": w.round(2).tolist(),
-                                      "vector_return": transfer[r, k].round(4).tolist(),
-                                      "optimal_vector_return": optimal[k].tolist(), "pareto_optimal": bool(hits[r, k])})
+                transfer_rows.append({"method": method, "seed": seed, "preference": rounded(w),
+                                      "vector_return": rounded(transfer[r, k]),
+                                      "optimal_vector_return": rounded(optimal[k]), "pareto_optimal": bool(hits[r, k])})
         ax.plot(front[:, 1], front[:, 0], "k--o", markersize=4, label="true Pareto front")
         mean = transfer.mean(0)
         points = ax.scatter(mean[:, 1], mean[:, 0], c=TRANSFER_PREFERENCES[:, 0], cmap="viridis", zorder=3,
