@@ -3,9 +3,16 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import inspect
+import json
+import os
+import re
 import sys
 
 import numpy as np
+
+from moiq_jax.config import Config
 
 
 def _cmd_envs(args) -> int:
@@ -53,6 +60,78 @@ def _cmd_rollout(args) -> int:
         tag = "on the front" if tuple(ret.tolist()) in front else "dominated"
         print(f"  treasure at {treasure}: return {_format_vector(ret)}  {tag}")
     return 0
+
+
+def _field_help() -> dict[str, str]:
+    """Each Config field's help: the comment after it in config.py (one place documents a field)."""
+    helps = {}
+    for line in inspect.getsource(Config).splitlines():
+        match = re.match(r"\s+(\w+): [^=]+= .*?#\s*(.+)$", line)
+        if match:
+            helps[match.group(1)] = match.group(2).strip()
+    return helps
+
+
+def _parse_vector(text: str) -> tuple[float, ...]:
+    try:
+        return tuple(float(w) for w in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected comma-separated numbers like 0.9,0.1, got {text!r}") from None
+
+
+def add_config_flags(parser: argparse.ArgumentParser) -> None:
+    """A flag for every Config field (``--beta``, ``--total-steps``...), plus ``--config FILE``.
+
+    Flags default to None so that only the ones given override the file's or Config's values."""
+    parser.add_argument("--config", metavar="FILE", help="a JSON or YAML file of Config fields; flags override it")
+    helps, defaults = _field_help(), Config()
+    for field in dataclasses.fields(Config):
+        flag = "--" + field.name.replace("_", "-")
+        default = getattr(defaults, field.name)
+        text = f"{helps.get(field.name, field.name.replace('_', ' '))} (default: {default})"
+        if field.name == "preferences":
+            parser.add_argument(flag, nargs="+", type=_parse_vector, metavar="W1,W2", default=None,
+                                help=text + "; one comma-separated vector per expert")
+        elif isinstance(default, bool):
+            parser.add_argument(flag, action=argparse.BooleanOptionalAction, default=None, help=text)
+        elif isinstance(default, tuple):
+            parser.add_argument(flag, nargs="+", type=int, default=None, help=text)
+        elif isinstance(default, (int, float)):
+            parser.add_argument(flag, type=type(default), default=None, help=text)
+        else:
+            parser.add_argument(flag, type=str, default=None, help=text)
+
+
+def config_from_args(args: argparse.Namespace) -> Config:
+    """The Config of a command: the file given by ``--config`` (if any), then the flags given."""
+    values = {}
+    if args.config:
+        values = load_config_file(args.config)
+    for field in dataclasses.fields(Config):
+        given = getattr(args, field.name, None)
+        if given is not None:
+            values[field.name] = given
+    return Config(**values)
+
+
+def load_config_file(path: str) -> dict:
+    """Config fields from a ``.json`` or ``.yaml``/``.yml`` file, with unknown keys named in the error."""
+    if not os.path.exists(path):
+        raise ValueError(f"config file {path!r} does not exist")
+    with open(path) as f:
+        if path.endswith((".yaml", ".yml")):
+            import yaml
+
+            values = yaml.safe_load(f) or {}
+        else:
+            values = json.load(f)
+    if not isinstance(values, dict):
+        raise ValueError(f"config file {path!r} must hold a mapping of Config fields, got {type(values).__name__}")  # noqa: TRY004 (a user's input error, reported as the others)
+    known = {field.name for field in dataclasses.fields(Config)}
+    unknown = sorted(set(values) - known)
+    if unknown:
+        raise ValueError(f"config file {path!r} has unknown fields {unknown}; known fields: {', '.join(sorted(known))}")
+    return values
 
 
 def build_parser() -> argparse.ArgumentParser:

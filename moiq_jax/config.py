@@ -17,13 +17,13 @@ INNER_RL = ("soft_vi", "ppo")
 @dataclasses.dataclass(frozen=True)
 class Config:
     # --- common ---
-    env: str = "cdst"
-    algo: str = "moiq"
-    preferences: tuple[tuple[float, ...], ...] = ((0.9, 0.1), (0.5, 0.5), (0.1, 0.9))
+    env: str = "cdst"  # a registered env (see `moiq envs`)
+    algo: str = "moiq"  # moiq, iq_learn (one model per expert) or admm (discrete DST)
+    preferences: tuple[tuple[float, ...], ...] = ((0.9, 0.1), (0.5, 0.5), (0.1, 0.9))  # one per expert
     num_demos: int = 10  # demonstrations per expert
     demos: str | None = None  # a Demonstrations file; None: record them from the env's oracle experts
-    seed: int = 0
-    gamma: float = 0.99
+    seed: int = 0  # random seed of the whole run
+    gamma: float = 0.99  # discount factor
 
     # --- moiq --- (also its baselines: "iq_learn" trains one model per expert with beta = 0)
     beta: float = 5.0  # consensus penalty weight; 0 is the paper's ablation
