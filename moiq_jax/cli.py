@@ -9,6 +9,7 @@ import json
 import os
 import re
 import sys
+import time
 
 import numpy as np
 
@@ -25,6 +26,10 @@ def _cmd_envs(args) -> int:
         print(f"{name:<13} {env.observation_size:>4} {actions:<13} {env.reward_dim:>10} {env_spec.episode_length:>8}"
               f"  {env_spec.description}")
     return 0
+
+
+def _format_preference(w) -> str:
+    return "[" + ", ".join(f"{x:g}" for x in np.round(np.asarray(w, float), 4)) + "]"
 
 
 def _format_vector(v) -> str:
@@ -134,6 +139,58 @@ def load_config_file(path: str) -> dict:
     return values
 
 
+def _resolve_run(args) -> tuple[Config, str, bool]:
+    """The config, run directory and resume flag of ``moiq train``."""
+    if args.resume:
+        saved = os.path.join(args.resume, "config.json")
+        if not os.path.exists(saved):
+            raise ValueError(f"{args.resume!r} is not a run directory (no config.json); nothing to resume")
+        given = [f.name for f in dataclasses.fields(Config) if getattr(args, f.name, None) is not None]
+        if given or args.config:
+            raise ValueError(f"--resume continues the run's saved config; drop --config and {given}")
+        return Config(**load_config_file(saved)), args.resume, True
+    config = config_from_args(args)
+    run_dir = args.run_dir or os.path.join("runs", f"{config.env}-{config.algo}-{time.strftime('%Y%m%d-%H%M%S')}")
+    if os.path.exists(run_dir) and os.listdir(run_dir):
+        raise ValueError(f"run directory {run_dir!r} already exists; continue it with `moiq train --resume "
+                         f"{run_dir}` or choose another --run-dir")
+    return config, run_dir, False
+
+
+def _print_returns_against_experts(config: Config, result) -> None:
+    from moiq_jax.algos.moiq_train import load_demonstrations
+
+    demos = load_demonstrations(config)
+    expert = demos.episode_returns().mean(axis=1)
+    final = np.asarray(result.history["eval_return"][-1])
+    best_step = int(np.argmax(np.asarray(result.history["eval_scalar_return"]).mean(axis=1)))
+    best = np.asarray(result.history["eval_return"][best_step])
+    print(f"returns per preference (vector, then scalarised); best = evaluation {best_step + 1} of "
+          f"{len(result.history['eval_return'])}")
+    print(f"  {'preference':<12} {'expert':<26} {'final':<26} {'best':<26}")
+    for w, e, f, b in zip(np.asarray(config.preferences), expert, final, best):
+        cells = [f"{_format_vector(v)} {float(np.dot(w, v)):7.2f}" for v in (e, f, b)]
+        print(f"  {_format_preference(w):<12} " + " ".join(f"{c:<26}" for c in cells))
+
+
+def _cmd_train(args) -> int:
+    import moiq_jax
+
+    config, run_dir, resume = _resolve_run(args)
+    config.validate()
+    if config.algo == "admm":
+        result = moiq_jax.train(config)
+        last = {name: np.asarray(values)[0, -1] for name, values in result.metrics.items()}
+        print(f"after {config.rounds} rounds: returns per expert (vector, scalarised) against the optimum")
+        for w, v, s, best in zip(result.preferences, last["vector_return"], last["return"], result.optimal_return):
+            print(f"  {_format_preference(w):<12} {_format_vector(v)} {float(s):8.2f}   optimum {float(best):8.2f}")
+        return 0
+    print(f"run directory: {run_dir}")
+    result = moiq_jax.train(config, run_dir=run_dir, resume=resume, progress=not args.no_progress, log=None)
+    _print_returns_against_experts(config, result)
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="moiq", description="Multi-objective inverse RL from several experts, in JAX.")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -148,16 +205,30 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--episodes", type=int, default=8, help="episodes run side by side (random policy); default: 8")
     p.add_argument("--seed", type=int, default=0, help="random seed; default: 0")
     p.set_defaults(func=_cmd_rollout)
+
+    p = sub.add_parser("train", help="train an algorithm; every Config field is a flag",
+                       description="Train (moiq, iq_learn or admm) and print each preference's return against "
+                                   "its expert's. Metrics, config and checkpoints go to the run directory.")
+    add_config_flags(p)
+    p.add_argument("--run-dir", help="where logs and checkpoints go (default: runs/<env>-<algo>-<time>)")
+    p.add_argument("--resume", metavar="RUN_DIR", help="continue a stopped run from its last checkpoint")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(func=_cmd_train)
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
+    from moiq_jax.runner import TrainingDiverged
+
     args = build_parser().parse_args(argv)
     try:
         return args.func(args)
-    except ValueError as err:
+    except (ValueError, FileNotFoundError) as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
+    except TrainingDiverged as err:
+        print(f"error: training diverged: {err}", file=sys.stderr)
+        return 3
 
 
 if __name__ == "__main__":

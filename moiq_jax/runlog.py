@@ -18,6 +18,8 @@ def per_expert_rows(step: int, metrics: dict, preferences) -> list[dict]:
     for e, preference in enumerate(np.asarray(preferences)):
         row = {"env_steps": step, "expert": e, "preference": " ".join(f"{w:g}" for w in preference)}
         for name, value in sorted(metrics.items()):
+            if name in row:  # env_steps etc. come from the caller
+                continue
             value = np.asarray(value)
             if value.ndim == 0:
                 row[name] = float(value)

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import dataclasses
 import itertools
-import time
 from typing import Any, NamedTuple
 
 import jax
@@ -27,6 +26,7 @@ from moiq_jax.envs.wrappers import AutoReset, VmapWrapper
 from moiq_jax.evaluate import episode_returns
 from moiq_jax.experts import Demonstrations
 from moiq_jax.networks import TanhGaussianActor, TwinVectorCritic, sample_tanh_gaussian
+from moiq_jax.runner import run_chunks
 
 
 @struct.dataclass
@@ -242,26 +242,14 @@ class TrainResult:
     seconds: float
 
 
-def train(config: Config, demos: Demonstrations | None = None, log=print) -> TrainResult:
-    """Run Algorithm 1 for ``config``: jitted chunks of ``eval_interval`` env steps, logged in between."""
+def train(config: Config, demos: Demonstrations | None = None, log=print, run_dir: str | None = None,
+          resume: bool = False, progress: bool = False) -> TrainResult:
+    """Run Algorithm 1 for ``config``: jitted chunks of ``eval_interval`` env steps, logged in between;
+    with ``run_dir``, also checkpointed after every chunk and resumable (see ``moiq_jax.runner``)."""
     trainer = make_train(config, demos)
-    start = time.perf_counter()
-    state = jax.jit(trainer.init)(jax.random.PRNGKey(config.seed))
-    run_chunk = jax.jit(trainer.run_chunk)
-    beta = jnp.float32(config.beta)
-    history = []
-    for _ in range(trainer.num_chunks):
-        state, metrics = run_chunk(state, beta)
-        metrics = jax.device_get(metrics)
-        history.append(metrics)
-        if log is not None:
-            steps = int(np.max(metrics["env_steps"]))
-            returns = np.round(np.asarray(metrics["eval_scalar_return"]), 2).tolist()
-            log(f"[{config.algo} beta={config.beta}] steps {steps}: scalarised returns {returns} "
-                f"({time.perf_counter() - start:.0f}s)")
+    state, history, seconds = run_chunks(trainer, config, run_dir=run_dir, resume=resume, log=log, progress=progress)
     stacked = {k: np.stack([h[k] for h in history]) for k in history[0]}
-    return TrainResult(config, state.learner.params, state.best_params, np.asarray(state.best_return),
-                       stacked, time.perf_counter() - start)
+    return TrainResult(config, state.learner.params, state.best_params, np.asarray(state.best_return), stacked, seconds)
 
 
 def sweep(config: Config, beta=None, seed=None, demos: Demonstrations | None = None) -> dict:
