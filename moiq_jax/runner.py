@@ -69,13 +69,15 @@ def run_chunks(trainer, config, run_dir: str | None = None, resume: bool = False
             improved = bool(np.any(np.asarray(new_state.best_return) > np.asarray(state.best_return)))
             state = new_state
             history.append(metrics)
+            # Log before checkpointing: a run killed in between resumes from the previous checkpoint and
+            # drops the rows logged after it, so every evaluation is logged exactly once.
+            if runlog is not None:
+                runlog.log(step, metrics, _summary(metrics))
             if checkpoints is not None:
                 checkpoints.save(step, state, {"chunk": chunk + 1, "history": [_to_json(m) for m in history]})
                 if improved:
                     checkpoints.save_best(step, state.best_params,
                                           {"best_return": np.asarray(state.best_return).tolist()})
-            if runlog is not None:
-                runlog.log(step, metrics, _summary(metrics))
             if log is not None:
                 log(f"[{config.algo} beta={config.beta}] steps {step}: {_summary(metrics)} "
                     f"({time.perf_counter() - start:.0f}s)")
