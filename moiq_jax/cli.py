@@ -191,6 +191,52 @@ def _cmd_train(args) -> int:
     return 0
 
 
+def _print_demos(demos) -> None:
+    returns = demos.episode_returns().mean(axis=1)
+    print(f"{demos.num_experts} experts x {demos.num_episodes} demonstrations of {demos.env} "
+          f"(obs {demos.obs.shape[-1]}, steps {demos.obs.shape[2]}); mean return per expert (vector, scalarised):")
+    for w, ret in zip(np.asarray(demos.preferences), returns):
+        print(f"  {_format_preference(w):<12} {_format_vector(ret)} {float(np.dot(w, ret)):8.2f}")
+
+
+def _cmd_demos(args) -> int:
+    from moiq_jax.experts import Demonstrations, oracle_demonstrations
+
+    if args.info:
+        _print_demos(Demonstrations.load(args.info))
+        return 0
+    preferences = args.preferences or Config().preferences
+    demos = oracle_demonstrations(args.env, preferences, args.num_demos, args.seed)
+    demos.save(args.out)
+    _print_demos(demos)
+    print(f"written to {args.out}")
+    return 0
+
+
+def _cmd_plot(args) -> int:
+    from moiq_jax import envs, plots
+
+    out_dir = args.out or args.run_dirs[0]
+    os.makedirs(out_dir, exist_ok=True)
+    config = Config(**load_config_file(os.path.join(args.run_dirs[0], "config.json")))
+    from moiq_jax.algos.moiq_train import load_demonstrations
+
+    try:
+        demos = load_demonstrations(config)
+        expert = (demos.episode_returns().mean(axis=1) * np.asarray(demos.preferences)).sum(-1)
+    except ValueError:  # no oracle experts for this env and no demos file: curves without expert lines
+        expert = None
+    print(plots.learning_curves(args.run_dirs, os.path.join(out_dir, "learning_curves.png"), expert_returns=expert))
+    base = envs.make(config.env).unwrapped
+    for run_dir in args.run_dirs:
+        found = plots.read_transfer(run_dir)
+        if found is not None:
+            front = base.pareto_front() if hasattr(base, "pareto_front") else None
+            name = os.path.basename(os.path.normpath(run_dir))
+            print(plots.transfer(found[1], found[0], os.path.join(out_dir, f"transfer_{name}.png"), front, title=name))
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="moiq", description="Multi-objective inverse RL from several experts, in JAX.")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -214,6 +260,25 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--resume", metavar="RUN_DIR", help="continue a stopped run from its last checkpoint")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=_cmd_train)
+
+    p = sub.add_parser("demos", help="record expert demonstrations to a file, or describe one",
+                       description="Record demonstrations of the env's exact optimal experts (DST maps and cdst) "
+                                   "in the Demonstrations format, printing each expert's return.")
+    p.add_argument("--env", default="cdst", help="registered env name; default: cdst")
+    p.add_argument("--preferences", nargs="+", type=_parse_vector, metavar="W1,W2",
+                   help="one comma-separated preference per expert (default: 0.9,0.1 0.5,0.5 0.1,0.9)")
+    p.add_argument("--num-demos", type=int, default=10, help="demonstrations per expert; default: 10")
+    p.add_argument("--seed", type=int, default=0, help="random seed (stochastic experts); default: 0")
+    p.add_argument("--out", default="demos.npz", help="file to write; default: demos.npz")
+    p.add_argument("--info", metavar="FILE", help="describe an existing demos file instead")
+    p.set_defaults(func=_cmd_demos)
+
+    p = sub.add_parser("plot", help="learning curves and transfer plots of runs",
+                       description="Learning curves (mean and min-max over the given runs, e.g. seeds) and, for "
+                                   "runs evaluated with `moiq eval`, the preference transfer against the true front.")
+    p.add_argument("run_dirs", nargs="+", metavar="RUN_DIR", help="run directories of `moiq train`")
+    p.add_argument("--out", help="folder for the PNG files (default: the first run directory)")
+    p.set_defaults(func=_cmd_plot)
     return parser
 
 

@@ -24,7 +24,7 @@ from moiq_jax.algos import moiq
 from moiq_jax.config import Config
 from moiq_jax.envs.wrappers import AutoReset, VmapWrapper
 from moiq_jax.evaluate import episode_returns
-from moiq_jax.experts import Demonstrations
+from moiq_jax.experts import Demonstrations, oracle_demonstrations
 from moiq_jax.networks import TanhGaussianActor, TwinVectorCritic, sample_tanh_gaussian
 from moiq_jax.runner import run_chunks
 
@@ -53,16 +53,18 @@ class Trainer(NamedTuple):
 
 
 def load_demonstrations(config: Config) -> Demonstrations:
-    """The configured demos file, or fresh oracle demonstrations for cdst; experts sorted by preference."""
+    """The configured demos file (its preferences must be the config's), or fresh oracle demonstrations;
+    experts sorted by preference."""
     env = envs.make(config.env, absorbing=True)
     if config.demos is not None:
         demos = Demonstrations.load(config.demos, env)
-    elif config.env == "cdst":
-        from moiq_jax.experts.cdst_oracle import record_demonstrations
-
-        demos = record_demonstrations(config.preferences, config.num_demos)
+        given = sorted(config.preferences)
+        recorded = sorted(map(tuple, np.round(np.asarray(demos.preferences), 6).tolist()))
+        if len(given) != len(recorded) or not np.allclose(given, recorded, atol=1e-5):
+            raise ValueError(f"the demos in {config.demos!r} are of preferences {recorded}, not the configured "
+                             f"{given}; set --preferences to match the file")
     else:
-        raise ValueError(f"no oracle experts for env {config.env!r}; pass a demos file")
+        demos = oracle_demonstrations(config.env, config.preferences, config.num_demos, config.seed)
     order = np.lexsort(np.asarray(demos.preferences).T[::-1])[::-1]  # descending, first objective first
     return jax.tree_util.tree_map(lambda x: np.asarray(x)[order], demos)
 
