@@ -173,6 +173,40 @@ def _print_returns_against_experts(config: Config, result) -> None:
         print(f"  {_format_preference(w):<12} " + " ".join(f"{c:<26}" for c in cells))
 
 
+def _run_sweep(config: Config, betas, seeds, out_dir: str) -> None:
+    """Train every (beta, seed) as one vmapped program; write each run's config.json and metrics.csv to
+    ``out_dir/beta<b>-seed<s>`` (so `moiq plot` reads them) and print final and best returns per run."""
+    import moiq_jax
+    from moiq_jax.runlog import RunLog
+
+    result = moiq_jax.sweep(config, beta=betas, seed=seeds)
+    history = result["history"]
+    steps = np.asarray(history["env_steps"])  # [runs, evals, experts]
+    print(f"{len(result['betas'])} runs; scalarised returns per preference {[_format_preference(w) for w in config.preferences]}")
+    for run, (beta, seed) in enumerate(zip(result["betas"], result["seeds"])):
+        run_config = config.replace(beta=float(beta), seed=int(seed))
+        run_dir = os.path.join(out_dir, f"beta{float(beta):g}-seed{int(seed)}")
+        log = RunLog(run_dir, run_config, total_steps=int(steps[run].max()), progress=False)
+        for t in range(steps.shape[1]):
+            log.log(int(steps[run, t].max()), {name: np.asarray(v)[run, t] for name, v in history.items()})
+        log.close()
+        scalar = np.asarray(history["eval_scalar_return"])[run]
+        best = scalar[int(np.argmax(scalar.mean(axis=1)))]
+        print(f"  beta {float(beta):<5g} seed {int(seed):<3d} final {_format_vector(scalar[-1])}  "
+              f"best {_format_vector(best)}  -> {run_dir}")
+
+
+def _cmd_sweep(args) -> int:
+    config = config_from_args(args).validate()
+    out_dir = args.out or os.path.join("runs", f"sweep-{config.env}-{config.algo}-{time.strftime('%Y%m%d-%H%M%S')}")
+    if os.path.exists(out_dir) and os.listdir(out_dir):
+        raise ValueError(f"sweep directory {out_dir!r} already exists; choose another --out")
+    betas = args.betas or [config.beta]
+    seeds = list(range(config.seed, config.seed + args.seeds))
+    _run_sweep(config, betas, seeds, out_dir)
+    return 0
+
+
 def _cmd_train(args) -> int:
     import moiq_jax
 
@@ -184,6 +218,9 @@ def _cmd_train(args) -> int:
         print(f"after {config.rounds} rounds: returns per expert (vector, scalarised) against the optimum")
         for w, v, s, best in zip(result.preferences, last["vector_return"], last["return"], result.optimal_return):
             print(f"  {_format_preference(w):<12} {_format_vector(v)} {float(s):8.2f}   optimum {float(best):8.2f}")
+        return 0
+    if args.seeds > 1:  # several seeds train as one vmapped program (no checkpoints: see `moiq sweep`)
+        _run_sweep(config, [config.beta], list(range(config.seed, config.seed + args.seeds)), run_dir)
         return 0
     print(f"run directory: {run_dir}")
     result = moiq_jax.train(config, run_dir=run_dir, resume=resume, progress=not args.no_progress, log=None)
@@ -259,7 +296,18 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--run-dir", help="where logs and checkpoints go (default: runs/<env>-<algo>-<time>)")
     p.add_argument("--resume", metavar="RUN_DIR", help="continue a stopped run from its last checkpoint")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--seeds", type=int, default=1,
+                   help="train seeds seed..seed+N-1 as one vmapped program, one sub-directory each (no checkpoints)")
     p.set_defaults(func=_cmd_train)
+
+    p = sub.add_parser("sweep", help="train every (beta, seed) combination as one vmapped program",
+                       description="Train the product of --betas and --seeds in one compiled program (moiq, "
+                                   "iq_learn); each run's config and metrics go to OUT/beta<b>-seed<s>.")
+    add_config_flags(p)
+    p.add_argument("--betas", nargs="+", type=float, help="consensus penalty weights (default: --beta)")
+    p.add_argument("--seeds", type=int, default=1, help="number of seeds, from --seed on; default: 1")
+    p.add_argument("--out", help="sweep directory (default: runs/sweep-<env>-<algo>-<time>)")
+    p.set_defaults(func=_cmd_sweep)
 
     p = sub.add_parser("demos", help="record expert demonstrations to a file, or describe one",
                        description="Record demonstrations of the env's exact optimal experts (DST maps and cdst) "

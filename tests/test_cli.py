@@ -111,3 +111,21 @@ def test_plot_draws_learning_curves_over_seeds(tmp_path):
     assert out.returncode == 0, out.stderr
     image = matplotlib.image.imread(tmp_path / "plots" / "learning_curves.png")
     assert image.shape[0] > 300 and image.shape[1] > 500
+
+
+def test_sweep_writes_one_run_directory_per_beta_and_seed(tmp_path):
+    from moiq_jax.plots import read_metrics
+
+    out = moiq("sweep", "--betas", "0", "5", "--seeds", "1", "--total-steps", "600", "--eval-interval", "300",
+               "--hidden-sizes", "8", "8", "--batch-size", "8", "--learning-starts", "50", "--buffer-size", "600",
+               "--out", str(tmp_path / "sweep"))
+    assert out.returncode == 0, out.stderr
+    assert sorted(p.name for p in (tmp_path / "sweep").iterdir()) == ["beta0-seed0", "beta5-seed0"]
+    for beta in ("0", "5"):
+        steps, _, values = read_metrics(str(tmp_path / "sweep" / f"beta{beta}-seed0"))
+        np.testing.assert_array_equal(steps, [300, 600])
+        line = next(row for row in out.stdout.splitlines() if row.strip().startswith(f"beta {beta} "))
+        final = [float(x) for x in line.split("final (")[1].split(")")[0].split(",")]
+        np.testing.assert_allclose(final, values["eval_scalar_return"][-1], atol=0.006)
+    config = (tmp_path / "sweep" / "beta5-seed0" / "config.json").read_text()
+    assert '"beta": 5.0' in config
