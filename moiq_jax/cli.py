@@ -212,9 +212,16 @@ def _cmd_train(args) -> int:
 
     config, run_dir, resume = _resolve_run(args)
     config.validate()
-    if config.algo == "admm":
+    if config.algo == "admm":  # one compiled program of all rounds (seconds): logged, not checkpointed
+        from moiq_jax.runlog import RunLog
+
         result = moiq_jax.train(config)
+        log = RunLog(run_dir, config, total_steps=config.rounds, progress=False, step_name="round")
+        for r in range(config.rounds):
+            log.log(r + 1, {name: np.asarray(values)[0, r] for name, values in result.metrics.items()})
+        log.close()
         last = {name: np.asarray(values)[0, -1] for name, values in result.metrics.items()}
+        print(f"run directory: {run_dir}")
         print(f"after {config.rounds} rounds: returns per expert (vector, scalarised) against the optimum")
         for w, v, s, best in zip(result.preferences, last["vector_return"], last["return"], result.optimal_return):
             print(f"  {_format_preference(w):<12} {_format_vector(v)} {float(s):8.2f}   optimum {float(best):8.2f}")
@@ -263,7 +270,8 @@ def _cmd_plot(args) -> int:
         expert = (demos.episode_returns().mean(axis=1) * np.asarray(demos.preferences)).sum(-1)
     except ValueError:  # no oracle experts for this env and no demos file: curves without expert lines
         expert = None
-    print(plots.learning_curves(args.run_dirs, os.path.join(out_dir, "learning_curves.png"), expert_returns=expert))
+    metric = args.metric or ("return" if config.algo == "admm" else "eval_scalar_return")
+    print(plots.learning_curves(args.run_dirs, os.path.join(out_dir, "learning_curves.png"), metric, expert))
     base = envs.make(config.env).unwrapped
     for run_dir in args.run_dirs:
         found = plots.read_transfer(run_dir)
@@ -326,6 +334,7 @@ def build_parser() -> argparse.ArgumentParser:
                                    "runs evaluated with `moiq eval`, the preference transfer against the true front.")
     p.add_argument("run_dirs", nargs="+", metavar="RUN_DIR", help="run directories of `moiq train`")
     p.add_argument("--out", help="folder for the PNG files (default: the first run directory)")
+    p.add_argument("--metric", help="the metrics.csv column to draw (default: the scalarised evaluation return)")
     p.set_defaults(func=_cmd_plot)
     return parser
 

@@ -6,8 +6,19 @@ from __future__ import annotations
 import csv
 import json
 import os
+from typing import NamedTuple
 
 import numpy as np
+
+
+class RunMetrics(NamedTuple):
+    """A run's metrics.csv: ``steps[T]`` (the first column, named ``step_name``), preference ``labels[E]``
+    and ``values``: name -> ``[T, E]``."""
+
+    step_name: str
+    steps: np.ndarray
+    labels: list[str]
+    values: dict[str, np.ndarray]
 
 
 def _pyplot():
@@ -19,8 +30,8 @@ def _pyplot():
     return plt
 
 
-def read_metrics(run_dir: str) -> tuple[np.ndarray, list[str], dict[str, np.ndarray]]:
-    """``(env_steps[T], preference labels[E], name -> values[T, E])`` from a run's metrics.csv."""
+def read_metrics(run_dir: str) -> RunMetrics:
+    """A run's metrics.csv; the step is its first column (env steps, or ADMM rounds)."""
     path = os.path.join(run_dir, "metrics.csv")
     if not os.path.exists(path):
         raise FileNotFoundError(f"{run_dir!r} has no metrics.csv; is it a run directory of `moiq train`?")
@@ -28,15 +39,16 @@ def read_metrics(run_dir: str) -> tuple[np.ndarray, list[str], dict[str, np.ndar
         rows = list(csv.DictReader(f))
     if not rows:
         raise ValueError(f"{path} holds no evaluations yet")
-    steps = sorted({int(r["env_steps"]) for r in rows})
+    step_name = next(iter(rows[0]))
+    steps = sorted({int(r[step_name]) for r in rows})
     labels = list(dict.fromkeys(r["preference"] for r in rows))
-    names = [k for k in rows[0] if k not in ("env_steps", "expert", "preference")]
+    names = [k for k in rows[0] if k not in (step_name, "expert", "preference")]
     values = {name: np.full((len(steps), len(labels)), np.nan) for name in names}
     for r in rows:
-        t, e = steps.index(int(r["env_steps"])), labels.index(r["preference"])
+        t, e = steps.index(int(r[step_name])), labels.index(r["preference"])
         for name in names:
             values[name][t, e] = float(r[name])
-    return np.array(steps), labels, values
+    return RunMetrics(step_name, np.array(steps), labels, values)
 
 
 def learning_curves(run_dirs: list[str], out: str, metric: str = "eval_scalar_return",
@@ -44,11 +56,13 @@ def learning_curves(run_dirs: list[str], out: str, metric: str = "eval_scalar_re
     """One line per preference: the mean over ``run_dirs`` (seeds) of ``metric`` against env steps, with
     the min-max band; dashed lines at the experts' returns when given. Returns the PNG path."""
     runs = [read_metrics(d) for d in run_dirs]
-    steps, labels = runs[0][0], runs[0][1]
-    for d, (s, lab, _) in zip(run_dirs, runs):
-        if not np.array_equal(s, steps) or lab != labels:
+    steps, labels = runs[0].steps, runs[0].labels
+    for d, run in zip(run_dirs, runs):
+        if not np.array_equal(run.steps, steps) or run.labels != labels:
             raise ValueError(f"{d!r} has other evaluation steps or preferences than {run_dirs[0]!r}")
-    values = np.stack([r[2][metric] for r in runs])  # [runs, T, E]
+        if metric not in run.values:
+            raise ValueError(f"{d!r} has no metric {metric!r}; it has {', '.join(sorted(run.values))}")
+    values = np.stack([r.values[metric] for r in runs])  # [runs, T, E]
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(6.5, 4.2))
     for e, label in enumerate(labels):
@@ -56,7 +70,7 @@ def learning_curves(run_dirs: list[str], out: str, metric: str = "eval_scalar_re
         ax.fill_between(steps, values[:, :, e].min(0), values[:, :, e].max(0), alpha=0.2, color=line.get_color())
         if expert_returns is not None:
             ax.axhline(expert_returns[e], ls="--", lw=1, color=line.get_color())
-    ax.set_xlabel("env steps per expert")
+    ax.set_xlabel("env steps per expert" if runs[0].step_name == "env_steps" else runs[0].step_name)
     ax.set_ylabel(metric.replace("_", " "))
     ax.set_title(f"{len(run_dirs)} run(s); mean and min-max" + ("; dashed: experts" if expert_returns is not None else ""))
     ax.legend(fontsize=8)

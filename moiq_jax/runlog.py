@@ -11,14 +11,14 @@ import time
 import numpy as np
 
 
-def per_expert_rows(step: int, metrics: dict, preferences) -> list[dict]:
+def per_expert_rows(step: int, metrics: dict, preferences, step_name: str = "env_steps") -> list[dict]:
     """One CSV row per expert: a metric of shape ``[E]`` gives one column, ``[E, d]`` gives ``d`` columns
     (``name_0``...), a scalar repeats on every row."""
     rows = []
     for e, preference in enumerate(np.asarray(preferences)):
-        row = {"env_steps": step, "expert": e, "preference": " ".join(f"{w:g}" for w in preference)}
+        row = {step_name: step, "expert": e, "preference": " ".join(f"{w:g}" for w in preference)}
         for name, value in sorted(metrics.items()):
-            if name in row:  # env_steps etc. come from the caller
+            if name in row:  # the step and the expert come from the caller
                 continue
             value = np.asarray(value)
             if value.ndim == 0:
@@ -39,11 +39,12 @@ class RunLog:
     """
 
     def __init__(self, run_dir: str | os.PathLike, config, total_steps: int, resume_step: int = 0,
-                 progress: bool = True):
+                 progress: bool = True, step_name: str = "env_steps"):
         from tensorboardX import SummaryWriter
         from tqdm import tqdm
 
         self.run_dir = os.fspath(run_dir)
+        self.step_name = step_name
         os.makedirs(self.run_dir, exist_ok=True)
         with open(os.path.join(self.run_dir, "config.json"), "w") as f:
             json.dump(dataclasses.asdict(config), f, indent=2)
@@ -59,7 +60,7 @@ class RunLog:
         if not os.path.exists(self.csv_path):
             return
         with open(self.csv_path, newline="") as f:
-            rows = [r for r in csv.DictReader(f) if int(r["env_steps"]) <= resume_step]
+            rows = [r for r in csv.DictReader(f) if int(r[self.step_name]) <= resume_step]
         self._write_rows(rows, mode="w")
 
     def _write_rows(self, rows: list[dict], mode: str = "a") -> None:
@@ -76,11 +77,11 @@ class RunLog:
 
     def log(self, step: int, metrics: dict, summary: str = "") -> None:
         """Record the metrics of one evaluation at ``step`` env steps and advance the progress bar."""
-        rows = per_expert_rows(step, metrics, self.preferences)
+        rows = per_expert_rows(step, metrics, self.preferences, self.step_name)
         self._write_rows(rows)
         for row in rows:
             for name, value in row.items():
-                if name not in ("env_steps", "expert", "preference"):
+                if name not in (self.step_name, "expert", "preference"):
                     self.writer.add_scalar(f"expert_{row['expert']}/{name}", value, step)
         self.writer.flush()
         self.bar.update(step - self.bar.n)

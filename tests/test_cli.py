@@ -103,10 +103,11 @@ def test_plot_draws_learning_curves_over_seeds(tmp_path):
         for step in (100, 200):
             run.log(step, {"eval_scalar_return": np.array([step / 10, -1.0 - seed, 0.5]) + seed})
         run.close()
-    steps, labels, values = read_metrics(str(tmp_path / "seed1"))
-    np.testing.assert_array_equal(steps, [100, 200])
-    assert labels == ["0.9 0.1", "0.5 0.5", "0.1 0.9"]
-    np.testing.assert_array_equal(values["eval_scalar_return"], [[11.0, -1.0, 1.5], [21.0, -1.0, 1.5]])
+    metrics = read_metrics(str(tmp_path / "seed1"))
+    assert metrics.step_name == "env_steps"
+    np.testing.assert_array_equal(metrics.steps, [100, 200])
+    assert metrics.labels == ["0.9 0.1", "0.5 0.5", "0.1 0.9"]
+    np.testing.assert_array_equal(metrics.values["eval_scalar_return"], [[11.0, -1.0, 1.5], [21.0, -1.0, 1.5]])
     out = moiq("plot", str(tmp_path / "seed0"), str(tmp_path / "seed1"), "--out", str(tmp_path / "plots"))
     assert out.returncode == 0, out.stderr
     image = matplotlib.image.imread(tmp_path / "plots" / "learning_curves.png")
@@ -122,10 +123,26 @@ def test_sweep_writes_one_run_directory_per_beta_and_seed(tmp_path):
     assert out.returncode == 0, out.stderr
     assert sorted(p.name for p in (tmp_path / "sweep").iterdir()) == ["beta0-seed0", "beta5-seed0"]
     for beta in ("0", "5"):
-        steps, _, values = read_metrics(str(tmp_path / "sweep" / f"beta{beta}-seed0"))
-        np.testing.assert_array_equal(steps, [300, 600])
+        metrics = read_metrics(str(tmp_path / "sweep" / f"beta{beta}-seed0"))
+        np.testing.assert_array_equal(metrics.steps, [300, 600])
         line = next(row for row in out.stdout.splitlines() if row.strip().startswith(f"beta {beta} "))
         final = [float(x) for x in line.split("final (")[1].split(")")[0].split(",")]
-        np.testing.assert_allclose(final, values["eval_scalar_return"][-1], atol=0.006)
+        np.testing.assert_allclose(final, metrics.values["eval_scalar_return"][-1], atol=0.006)
     config = (tmp_path / "sweep" / "beta5-seed0" / "config.json").read_text()
     assert '"beta": 5.0' in config
+
+
+def test_train_admm_reaches_the_optimum_and_logs_every_round(tmp_path):
+    from moiq_jax.plots import read_metrics
+
+    out = moiq("train", "--env", "dst-mini", "--algo", "admm", "--preferences", "0.9,0.1", "0.1,0.9",
+               "--gamma", "0.999", "--run-dir", str(tmp_path / "admm"))
+    assert out.returncode == 0, out.stderr
+    rows = [line.split() for line in out.stdout.splitlines() if "optimum" in line and line.strip().startswith("[")]
+    assert len(rows) == 2
+    for row in rows:
+        assert row[-1] == row[-3]  # scalarised return == optimum, as printed
+    metrics = read_metrics(str(tmp_path / "admm"))
+    assert metrics.step_name == "round"
+    np.testing.assert_array_equal(metrics.steps, np.arange(1, 11))
+    np.testing.assert_allclose(metrics.values["return"][-1], [14.12, -0.8], atol=1e-4)
