@@ -77,25 +77,29 @@ def ppo_agent(mdp: TabularMDP, config: Config):
     minibatch = batch_size // config.ppo_minibatches
     scale = value_scale(mdp, config)
 
-    def evaluate(params, states):
-        logits, value = net.apply(params, one_hot[states])
-        return logits, value * scale
+    def tables(params):
+        """Log-probabilities ``[S + 1, A]`` and values ``[S + 1]`` of every state: the net sees one-hot
+        states, so one pass over all ``S + 1`` of them, gathered per sample, is exact and far cheaper than a
+        pass per sample."""
+        logits, value = net.apply(params, one_hot)
+        return jax.nn.log_softmax(logits), value * scale
 
     def init(key):
         params = net.init(key, one_hot[0])
         return PPOAgent(params, optimiser.init(params))
 
     def policy(agent):
-        return jax.nn.softmax(net.apply(agent.params, one_hot)[0], axis=-1)
+        return jnp.exp(tables(agent.params)[0])
 
     def rollout(params, reward, key):
         """``ppo_num_envs`` episodes from the start state with the soft reward; GAE advantages with
         bootstrap at the time limit."""
 
+        log_pi, value = tables(params)
+
         def step(states, key):
-            logits, values = evaluate(params, states)
-            actions = jax.random.categorical(key, logits)
-            log_probs = jax.nn.log_softmax(logits)[jnp.arange(states.shape[0]), actions]
+            actions = jax.random.categorical(key, log_pi[states])
+            log_probs, values = log_pi[states, actions], value[states]
             soft_reward = reward[states, actions] - config.temperature * log_probs
             return mdp.next_state[states, actions], (states, actions, log_probs, values, soft_reward)
 
@@ -103,7 +107,7 @@ def ppo_agent(mdp: TabularMDP, config: Config):
         last, (states, actions, log_probs, values, rewards) = jax.lax.scan(
             step, start, jax.random.split(key, mdp.horizon)
         )
-        last_value = evaluate(params, last)[1]
+        last_value = value[last]
 
         def gae(carry, xs):
             advantage, next_value = carry
@@ -117,9 +121,8 @@ def ppo_agent(mdp: TabularMDP, config: Config):
         return Batch(flat(states), flat(actions), flat(log_probs), flat(advantages), flat(advantages + values))
 
     def loss(params, batch):
-        logits, values = evaluate(params, batch.states)
-        log_all = jax.nn.log_softmax(logits)
-        log_probs = jnp.take_along_axis(log_all, batch.actions[:, None], axis=-1)[:, 0]
+        log_pi, value = tables(params)
+        log_probs, values = log_pi[batch.states, batch.actions], value[batch.states]
         ratio = jnp.exp(log_probs - batch.log_probs)
         adv = (batch.advantages - batch.advantages.mean()) / (batch.advantages.std() + 1e-8)
         clipped = jnp.clip(ratio, 1 - config.ppo_clip, 1 + config.ppo_clip)
