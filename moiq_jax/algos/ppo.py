@@ -94,7 +94,6 @@ def ppo_agent(mdp: TabularMDP, config: Config):
     def rollout(params, reward, key):
         """``ppo_num_envs`` episodes from the start state with the soft reward; GAE advantages with
         bootstrap at the time limit."""
-
         log_pi, value = tables(params)
 
         def step(states, key):
