@@ -66,7 +66,9 @@ class MujocoEnv(Env):
 
     @functools.cached_property
     def mjx_model(self) -> mjx.Model:
-        return mjx.put_model(self.mj_model)
+        """The device model; built eagerly even when first used inside a trace, so no tracer is cached."""
+        with jax.ensure_compile_time_eval():
+            return mjx.put_model(self.mj_model)
 
     @property
     def dt(self) -> float:
