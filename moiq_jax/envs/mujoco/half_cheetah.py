@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 
-from moiq_jax.envs.mujoco.base import MujocoEnv, neg_squared_action, planar_observation
+from moiq_jax.envs.mujoco.base import PlanarEnv, neg_squared_action
 
 
-class HalfCheetah(MujocoEnv):
+class HalfCheetah(PlanarEnv):
     """A planar cheetah (HalfCheetah-v5: frame skip 5, dt 0.05 s, reset noise 0.1: uniform on qpos,
     Gaussian on qvel).
 
@@ -22,9 +22,6 @@ class HalfCheetah(MujocoEnv):
     reward_dim = 2
     observation_size = 17
     action_size = 6
-
-    def observe(self, data):
-        return planar_observation(data, clip_qvel=None)
 
     def reward_and_done(self, before, after, action):
         reward = jnp.stack([self.x_velocity(before, after), neg_squared_action(action)])

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 
-from moiq_jax.envs.mujoco.base import MujocoEnv, neg_squared_action, planar_observation
+from moiq_jax.envs.mujoco.base import PlanarEnv, neg_squared_action
 
 
-class Hopper(MujocoEnv):
+class Hopper(PlanarEnv):
     """A one-legged planar hopper (Hopper-v5: frame skip 4, dt 0.008 s, uniform reset noise 5e-3).
 
     Observation (11): ``qpos[1:]`` (height, angles) and ``qvel`` clipped to [-10, 10].
@@ -20,12 +20,10 @@ class Hopper(MujocoEnv):
     xml_file = "hopper.xml"
     frame_skip = 4
     reset_noise_scale = 5e-3
+    clip_qvel = 10.0
     reward_dim = 3
     observation_size = 11
     action_size = 3
-
-    def observe(self, data):
-        return planar_observation(data, clip_qvel=10.0)
 
     def is_healthy(self, data):
         z, angle = data.qpos[1], data.qpos[2]

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 
-from moiq_jax.envs.mujoco.base import MujocoEnv, neg_squared_action, planar_observation
+from moiq_jax.envs.mujoco.base import PlanarEnv, neg_squared_action
 
 
-class Walker2d(MujocoEnv):
+class Walker2d(PlanarEnv):
     """A two-legged planar walker (Walker2d-v5: frame skip 4, dt 0.008 s, uniform reset noise 5e-3).
 
     Observation (17): ``qpos[1:]`` (height, angles) and ``qvel`` clipped to [-10, 10].
@@ -19,12 +19,10 @@ class Walker2d(MujocoEnv):
     xml_file = "walker2d_v5.xml"
     frame_skip = 4
     reset_noise_scale = 5e-3
+    clip_qvel = 10.0
     reward_dim = 2
     observation_size = 17
     action_size = 6
-
-    def observe(self, data):
-        return planar_observation(data, clip_qvel=10.0)
 
     def is_healthy(self, data):
         z, angle = data.qpos[1], data.qpos[2]
