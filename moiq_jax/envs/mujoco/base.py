@@ -10,8 +10,7 @@ Solver settings. The models keep MuJoCo's solver settings (Newton, at most 100 i
 line-search iterations, tolerance 1e-8). MJX's solver is warm-started from the previous step's
 accelerations and stops at the tolerance, so it usually needs one to three iterations. Unbatched,
 capping them saves little (about 10 % for the hopper), but under ``vmap`` every env waits for the
-slowest, so caps matter
-for throughput (hopper, 64 envs: about 330 env-steps/s at MuJoCo's settings against about 1,500 at 1,024
+slowest, so caps matter for throughput (hopper, 64 envs: about 330 env-steps/s at MuJoCo's settings against about 1,500 at 1,024
 envs with 2 and 4, on 2 loaded cores). Parity with MuJoCo needs MuJoCo's settings: at 1 iteration and
 4 line-search iterations the hopper's observations drift 0.2 from MuJoCo's within 20 steps, at 2 and 4
 some hopper episodes and the walker2d (0.4 apart) fail the parity tests. So the defaults are kept;
