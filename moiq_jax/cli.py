@@ -19,12 +19,14 @@ from moiq_jax.config import Config
 def _cmd_envs(args) -> int:
     from moiq_jax import envs
 
-    print(f"{'name':<13} {'obs':>4} {'actions':<13} {'reward_dim':>10} {'episode':>8}  description")
-    for name, env_spec in sorted(envs.registered().items()):
+    specs = sorted(envs.registered().items())
+    width = max(len("name"), *(len(name) for name, _ in specs))
+    print(f"{'name':<{width}} {'obs':>4} {'actions':<13} {'reward_dim':>10} {'episode':>8}  description")
+    for name, env_spec in specs:
         env = envs.make(name)
         actions = f"{env.num_actions} discrete" if env.discrete else f"{env.action_size}-D box"
-        print(f"{name:<13} {env.observation_size:>4} {actions:<13} {env.reward_dim:>10} {env_spec.episode_length:>8}"
-              f"  {env_spec.description}")
+        print(f"{name:<{width}} {env.observation_size:>4} {actions:<13} {env.reward_dim:>10} "
+              f"{env_spec.episode_length:>8}  {env_spec.description}")
     return 0
 
 
