@@ -3,9 +3,8 @@
 from __future__ import annotations
 
 import jax.numpy as jnp
-from mujoco import mjx
 
-from moiq_jax.envs.mujoco.base import MujocoEnv, neg_squared_action
+from moiq_jax.envs.mujoco.base import MujocoEnv, mjx, neg_squared_action
 
 CONTACT_COST_WEIGHT = 5e-4
 CONTACT_FORCE_RANGE = 1.0

@@ -20,14 +20,18 @@ some hopper episodes and the walker2d (0.4 apart) fail the parity tests. So the 
 from __future__ import annotations
 
 import abc
+import contextlib
 import functools
+import io
 import os
 
 import jax
 import jax.numpy as jnp
 import mujoco
 import numpy as np
-from mujoco import mjx
+
+with contextlib.redirect_stdout(io.StringIO()):  # MJX prints a notice when its optional warp backend is absent
+    from mujoco import mjx
 
 from moiq_jax.envs.base import Env, State
 
