@@ -1,6 +1,7 @@
 """Env steps per second: moiq_jax's jitted, vmapped envs against MO-Gymnasium's Python loop, same run.
 
     python benchmarks/env_throughput.py [--num-envs 4096] [--steps 1000] [--gym-seconds 5]
+    python benchmarks/env_throughput.py --mujoco [--mujoco-envs 1 64 1024] [--mujoco-steps 20]
 
 Random actions are drawn inside the measured loop on both sides (one draw per step for the whole
 batch, as Gymnasium draws one per step); episodes auto-reset on both sides.
@@ -64,15 +65,41 @@ def gym_steps_per_second(gym_id: str, seconds: float) -> float:
     return steps / (time.perf_counter() - start)
 
 
+MUJOCO_ENVS = {
+    "mo-hopper": "mo-hopper-v5",
+    "mo-walker2d": "mo-walker2d-v5",
+    "mo-halfcheetah": "mo-halfcheetah-v5",
+    "mo-ant": "mo-ant-v5",
+}
+
+
+def mujoco_report(names, batch_sizes, steps, gym_seconds) -> None:
+    """Env-steps/s of the MJX envs at each batch size against MO-Gymnasium's Python loop, same run."""
+    for name in names:
+        theirs = gym_steps_per_second(MUJOCO_ENVS[name], gym_seconds)
+        print(f"{name:<15} MO-Gymnasium (Python loop): {theirs:10,.0f} env-steps/s", flush=True)
+        for num_envs in batch_sizes:
+            ours = jax_steps_per_second(name, num_envs, steps, repeats=1)
+            print(f"{name:<15} moiq_jax {num_envs:5d} envs:         {ours:10,.0f} env-steps/s  "
+                  f"({ours / theirs:5.2f}x MO-Gymnasium)", flush=True)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--num-envs", type=int, default=4096)
     parser.add_argument("--steps", type=int, default=1000)
     parser.add_argument("--gym-seconds", type=float, default=5.0)
+    parser.add_argument("--mujoco", action="store_true", help="benchmark the MJX MuJoCo envs instead of DST")
+    parser.add_argument("--mujoco-envs", nargs="+", default=list(MUJOCO_ENVS), choices=list(MUJOCO_ENVS))
+    parser.add_argument("--batch-sizes", type=int, nargs="+", default=[1, 64, 1024])
+    parser.add_argument("--mujoco-steps", type=int, default=20, help="steps per measured scan (MuJoCo envs)")
     args = parser.parse_args()
 
     print(f"machine: {platform.machine()}, jax {jax.__version__} on {jax.devices()[0].platform}, "
           f"{jax.device_count()} device(s)")
+    if args.mujoco:
+        mujoco_report(args.mujoco_envs, args.batch_sizes, args.mujoco_steps, args.gym_seconds)
+        return
     ours = jax_steps_per_second("dst", args.num_envs, args.steps)
     theirs = gym_steps_per_second("deep-sea-treasure-v0", args.gym_seconds)
     print(f"dst   moiq_jax ({args.num_envs} envs, vmap in lax.scan): {ours:14,.0f} env-steps/s")

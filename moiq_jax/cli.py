@@ -3,21 +3,35 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import inspect
+import json
+import os
+import re
 import sys
+import time
 
 import numpy as np
+
+from moiq_jax.config import Config
 
 
 def _cmd_envs(args) -> int:
     from moiq_jax import envs
 
-    print(f"{'name':<13} {'obs':>4} {'actions':<13} {'reward_dim':>10} {'episode':>8}  description")
-    for name, env_spec in sorted(envs.registered().items()):
+    specs = sorted(envs.registered().items())
+    width = max(len("name"), *(len(name) for name, _ in specs))
+    print(f"{'name':<{width}} {'obs':>4} {'actions':<13} {'reward_dim':>10} {'episode':>8}  description")
+    for name, env_spec in specs:
         env = envs.make(name)
         actions = f"{env.num_actions} discrete" if env.discrete else f"{env.action_size}-D box"
-        print(f"{name:<13} {env.observation_size:>4} {actions:<13} {env.reward_dim:>10} {env_spec.episode_length:>8}"
-              f"  {env_spec.description}")
+        print(f"{name:<{width}} {env.observation_size:>4} {actions:<13} {env.reward_dim:>10} "
+              f"{env_spec.episode_length:>8}  {env_spec.description}")
     return 0
+
+
+def _format_preference(w) -> str:
+    return "[" + ", ".join(f"{x:g}" for x in np.round(np.asarray(w, float), 4)) + "]"
 
 
 def _format_vector(v) -> str:
@@ -55,6 +69,221 @@ def _cmd_rollout(args) -> int:
     return 0
 
 
+def _field_help() -> dict[str, str]:
+    """Each Config field's help: the comment after it in config.py (one place documents a field)."""
+    helps = {}
+    for line in inspect.getsource(Config).splitlines():
+        match = re.match(r"\s+(\w+): [^=]+= .*?#\s*(.+)$", line)
+        if match:
+            helps[match.group(1)] = match.group(2).strip()
+    return helps
+
+
+def _parse_vector(text: str) -> tuple[float, ...]:
+    try:
+        return tuple(float(w) for w in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected comma-separated numbers like 0.9,0.1, got {text!r}") from None
+
+
+def add_config_flags(parser: argparse.ArgumentParser) -> None:
+    """A flag for every Config field (``--beta``, ``--total-steps``...), plus ``--config FILE``.
+
+    Flags default to None so that only the ones given override the file's or Config's values."""
+    parser.add_argument("--config", metavar="FILE", help="a JSON or YAML file of Config fields; flags override it")
+    helps, defaults = _field_help(), Config()
+    for field in dataclasses.fields(Config):
+        flag = "--" + field.name.replace("_", "-")
+        default = getattr(defaults, field.name)
+        text = f"{helps.get(field.name, field.name.replace('_', ' '))} (default: {default})"
+        if field.name == "preferences":
+            parser.add_argument(flag, nargs="+", type=_parse_vector, metavar="W1,W2", default=None,
+                                help=text + "; one comma-separated vector per expert")
+        elif isinstance(default, bool):
+            parser.add_argument(flag, action=argparse.BooleanOptionalAction, default=None, help=text)
+        elif isinstance(default, tuple):
+            parser.add_argument(flag, nargs="+", type=int, default=None, help=text)
+        elif isinstance(default, (int, float)):
+            parser.add_argument(flag, type=type(default), default=None, help=text)
+        else:
+            parser.add_argument(flag, type=str, default=None, help=text)
+
+
+def config_from_args(args: argparse.Namespace) -> Config:
+    """The Config of a command: the file given by ``--config`` (if any), then the flags given."""
+    values = {}
+    if args.config:
+        values = load_config_file(args.config)
+    for field in dataclasses.fields(Config):
+        given = getattr(args, field.name, None)
+        if given is not None:
+            values[field.name] = given
+    return Config(**values)
+
+
+def load_config_file(path: str) -> dict:
+    """Config fields from a ``.json`` or ``.yaml``/``.yml`` file, with unknown keys named in the error."""
+    if not os.path.exists(path):
+        raise ValueError(f"config file {path!r} does not exist")
+    with open(path) as f:
+        if path.endswith((".yaml", ".yml")):
+            import yaml
+
+            values = yaml.safe_load(f) or {}
+        else:
+            values = json.load(f)
+    if not isinstance(values, dict):
+        raise ValueError(f"config file {path!r} must hold a mapping of Config fields, got {type(values).__name__}")  # noqa: TRY004 (a user's input error, reported as the others)
+    known = {field.name for field in dataclasses.fields(Config)}
+    unknown = sorted(set(values) - known)
+    if unknown:
+        raise ValueError(f"config file {path!r} has unknown fields {unknown}; known fields: {', '.join(sorted(known))}")
+    return values
+
+
+def _resolve_run(args) -> tuple[Config, str, bool]:
+    """The config, run directory and resume flag of ``moiq train``."""
+    if args.resume:
+        saved = os.path.join(args.resume, "config.json")
+        if not os.path.exists(saved):
+            raise ValueError(f"{args.resume!r} is not a run directory (no config.json); nothing to resume")
+        given = [f.name for f in dataclasses.fields(Config) if getattr(args, f.name, None) is not None]
+        if given or args.config:
+            raise ValueError(f"--resume continues the run's saved config; drop --config and {given}")
+        return Config(**load_config_file(saved)), args.resume, True
+    config = config_from_args(args)
+    run_dir = args.run_dir or os.path.join("runs", f"{config.env}-{config.algo}-{time.strftime('%Y%m%d-%H%M%S')}")
+    if os.path.exists(run_dir) and os.listdir(run_dir):
+        raise ValueError(f"run directory {run_dir!r} already exists; continue it with `moiq train --resume "
+                         f"{run_dir}` or choose another --run-dir")
+    return config, run_dir, False
+
+
+def _print_returns_against_experts(config: Config, result) -> None:
+    from moiq_jax.algos.moiq_train import load_demonstrations
+
+    demos = load_demonstrations(config)
+    expert = demos.episode_returns().mean(axis=1)
+    final = np.asarray(result.history["eval_return"][-1])
+    best_step = int(np.argmax(np.asarray(result.history["eval_scalar_return"]).mean(axis=1)))
+    best = np.asarray(result.history["eval_return"][best_step])
+    print(f"returns per preference (vector, then scalarised); best = evaluation {best_step + 1} of "
+          f"{len(result.history['eval_return'])}")
+    print(f"  {'preference':<12} {'expert':<26} {'final':<26} {'best':<26}")
+    for w, e, f, b in zip(np.asarray(config.preferences), expert, final, best):
+        cells = [f"{_format_vector(v)} {float(np.dot(w, v)):7.2f}" for v in (e, f, b)]
+        print(f"  {_format_preference(w):<12} " + " ".join(f"{c:<26}" for c in cells))
+
+
+def _run_sweep(config: Config, betas, seeds, out_dir: str) -> None:
+    """Train every (beta, seed) as one vmapped program; write each run's config.json and metrics.csv to
+    ``out_dir/beta<b>-seed<s>`` (so `moiq plot` reads them) and print final and best returns per run."""
+    import moiq_jax
+    from moiq_jax.runlog import RunLog
+
+    result = moiq_jax.sweep(config, beta=betas, seed=seeds)
+    history = result["history"]
+    steps = np.asarray(history["env_steps"])  # [runs, evals, experts]
+    print(f"{len(result['betas'])} runs; scalarised returns per preference {[_format_preference(w) for w in config.preferences]}")
+    for run, (beta, seed) in enumerate(zip(result["betas"], result["seeds"])):
+        run_config = config.replace(beta=float(beta), seed=int(seed))
+        run_dir = os.path.join(out_dir, f"beta{float(beta):g}-seed{int(seed)}")
+        log = RunLog(run_dir, run_config, total_steps=int(steps[run].max()), progress=False)
+        for t in range(steps.shape[1]):
+            log.log(int(steps[run, t].max()), {name: np.asarray(v)[run, t] for name, v in history.items()})
+        log.close()
+        scalar = np.asarray(history["eval_scalar_return"])[run]
+        best = scalar[int(np.argmax(scalar.mean(axis=1)))]
+        print(f"  beta {float(beta):<5g} seed {int(seed):<3d} final {_format_vector(scalar[-1])}  "
+              f"best {_format_vector(best)}  -> {run_dir}")
+
+
+def _cmd_sweep(args) -> int:
+    config = config_from_args(args).validate()
+    out_dir = args.out or os.path.join("runs", f"sweep-{config.env}-{config.algo}-{time.strftime('%Y%m%d-%H%M%S')}")
+    if os.path.exists(out_dir) and os.listdir(out_dir):
+        raise ValueError(f"sweep directory {out_dir!r} already exists; choose another --out")
+    betas = args.betas or [config.beta]
+    seeds = list(range(config.seed, config.seed + args.seeds))
+    _run_sweep(config, betas, seeds, out_dir)
+    return 0
+
+
+def _cmd_train(args) -> int:
+    import moiq_jax
+
+    config, run_dir, resume = _resolve_run(args)
+    config.validate()
+    if config.algo == "admm":  # one compiled program of all rounds (seconds): logged, not checkpointed
+        from moiq_jax.runlog import RunLog
+
+        result = moiq_jax.train(config)
+        log = RunLog(run_dir, config, total_steps=config.rounds, progress=False, step_name="round")
+        for r in range(config.rounds):
+            log.log(r + 1, {name: np.asarray(values)[0, r] for name, values in result.metrics.items()})
+        log.close()
+        last = {name: np.asarray(values)[0, -1] for name, values in result.metrics.items()}
+        print(f"run directory: {run_dir}")
+        print(f"after {config.rounds} rounds: returns per expert (vector, scalarised) against the optimum")
+        for w, v, s, best in zip(result.preferences, last["vector_return"], last["return"], result.optimal_return):
+            print(f"  {_format_preference(w):<12} {_format_vector(v)} {float(s):8.2f}   optimum {float(best):8.2f}")
+        return 0
+    if args.seeds > 1:  # several seeds train as one vmapped program (no checkpoints: see `moiq sweep`)
+        _run_sweep(config, [config.beta], list(range(config.seed, config.seed + args.seeds)), run_dir)
+        return 0
+    print(f"run directory: {run_dir}")
+    result = moiq_jax.train(config, run_dir=run_dir, resume=resume, progress=not args.no_progress, log=None)
+    _print_returns_against_experts(config, result)
+    return 0
+
+
+def _print_demos(demos) -> None:
+    returns = demos.episode_returns().mean(axis=1)
+    print(f"{demos.num_experts} experts x {demos.num_episodes} demonstrations of {demos.env} "
+          f"(obs {demos.obs.shape[-1]}, steps {demos.obs.shape[2]}); mean return per expert (vector, scalarised):")
+    for w, ret in zip(np.asarray(demos.preferences), returns):
+        print(f"  {_format_preference(w):<12} {_format_vector(ret)} {float(np.dot(w, ret)):8.2f}")
+
+
+def _cmd_demos(args) -> int:
+    from moiq_jax.experts import Demonstrations, oracle_demonstrations
+
+    if args.info:
+        _print_demos(Demonstrations.load(args.info))
+        return 0
+    preferences = args.preferences or Config().preferences
+    demos = oracle_demonstrations(args.env, preferences, args.num_demos, args.seed)
+    demos.save(args.out)
+    _print_demos(demos)
+    print(f"written to {args.out}")
+    return 0
+
+
+def _cmd_plot(args) -> int:
+    from moiq_jax import envs, plots
+
+    out_dir = args.out or args.run_dirs[0]
+    os.makedirs(out_dir, exist_ok=True)
+    config = Config(**load_config_file(os.path.join(args.run_dirs[0], "config.json")))
+    from moiq_jax.algos.moiq_train import load_demonstrations
+
+    try:
+        demos = load_demonstrations(config)
+        expert = (demos.episode_returns().mean(axis=1) * np.asarray(demos.preferences)).sum(-1)
+    except ValueError:  # no oracle experts for this env and no demos file: curves without expert lines
+        expert = None
+    metric = args.metric or ("return" if config.algo == "admm" else "eval_scalar_return")
+    print(plots.learning_curves(args.run_dirs, os.path.join(out_dir, "learning_curves.png"), metric, expert))
+    base = envs.make(config.env).unwrapped
+    for run_dir in args.run_dirs:
+        found = plots.read_transfer(run_dir)
+        if found is not None:
+            front = base.pareto_front() if hasattr(base, "pareto_front") else None
+            name = os.path.basename(os.path.normpath(run_dir))
+            print(plots.transfer(found[1], found[0], os.path.join(out_dir, f"transfer_{name}.png"), front, title=name))
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="moiq", description="Multi-objective inverse RL from several experts, in JAX.")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -69,16 +298,61 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--episodes", type=int, default=8, help="episodes run side by side (random policy); default: 8")
     p.add_argument("--seed", type=int, default=0, help="random seed; default: 0")
     p.set_defaults(func=_cmd_rollout)
+
+    p = sub.add_parser("train", help="train an algorithm; every Config field is a flag",
+                       description="Train (moiq, iq_learn or admm) and print each preference's return against "
+                                   "its expert's. Metrics, config and checkpoints go to the run directory.")
+    add_config_flags(p)
+    p.add_argument("--run-dir", help="where logs and checkpoints go (default: runs/<env>-<algo>-<time>)")
+    p.add_argument("--resume", metavar="RUN_DIR", help="continue a stopped run from its last checkpoint")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--seeds", type=int, default=1,
+                   help="train seeds seed..seed+N-1 as one vmapped program, one sub-directory each (no checkpoints)")
+    p.set_defaults(func=_cmd_train)
+
+    p = sub.add_parser("sweep", help="train every (beta, seed) combination as one vmapped program",
+                       description="Train the product of --betas and --seeds in one compiled program (moiq, "
+                                   "iq_learn); each run's config and metrics go to OUT/beta<b>-seed<s>.")
+    add_config_flags(p)
+    p.add_argument("--betas", nargs="+", type=float, help="consensus penalty weights (default: --beta)")
+    p.add_argument("--seeds", type=int, default=1, help="number of seeds, from --seed on; default: 1")
+    p.add_argument("--out", help="sweep directory (default: runs/sweep-<env>-<algo>-<time>)")
+    p.set_defaults(func=_cmd_sweep)
+
+    p = sub.add_parser("demos", help="record expert demonstrations to a file, or describe one",
+                       description="Record demonstrations of the env's exact optimal experts (DST maps and cdst) "
+                                   "in the Demonstrations format, printing each expert's return.")
+    p.add_argument("--env", default="cdst", help="registered env name; default: cdst")
+    p.add_argument("--preferences", nargs="+", type=_parse_vector, metavar="W1,W2",
+                   help="one comma-separated preference per expert (default: 0.9,0.1 0.5,0.5 0.1,0.9)")
+    p.add_argument("--num-demos", type=int, default=10, help="demonstrations per expert; default: 10")
+    p.add_argument("--seed", type=int, default=0, help="random seed (stochastic experts); default: 0")
+    p.add_argument("--out", default="demos.npz", help="file to write; default: demos.npz")
+    p.add_argument("--info", metavar="FILE", help="describe an existing demos file instead")
+    p.set_defaults(func=_cmd_demos)
+
+    p = sub.add_parser("plot", help="learning curves and transfer plots of runs",
+                       description="Learning curves (mean and min-max over the given runs, e.g. seeds) and, for "
+                                   "runs evaluated with `moiq eval`, the preference transfer against the true front.")
+    p.add_argument("run_dirs", nargs="+", metavar="RUN_DIR", help="run directories of `moiq train`")
+    p.add_argument("--out", help="folder for the PNG files (default: the first run directory)")
+    p.add_argument("--metric", help="the metrics.csv column to draw (default: the scalarised evaluation return)")
+    p.set_defaults(func=_cmd_plot)
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
+    from moiq_jax.runner import TrainingDiverged
+
     args = build_parser().parse_args(argv)
     try:
         return args.func(args)
-    except ValueError as err:
+    except (ValueError, FileNotFoundError) as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
+    except TrainingDiverged as err:
+        print(f"error: training diverged: {err}", file=sys.stderr)
+        return 3
 
 
 if __name__ == "__main__":

@@ -14,12 +14,15 @@ _ENTRY_POINTS: dict[str, str] = {
 }
 
 
-def train(config: Config):
-    """Validate ``config`` and run its algorithm; returns that algorithm's result."""
+def train(config: Config, **options):
+    """Validate ``config`` and run its algorithm; returns that algorithm's result.
+
+    ``options`` go to the algorithm's ``train``; for moiq and iq_learn: ``run_dir`` (logs and checkpoints),
+    ``resume``, ``progress`` (a progress bar) and ``log`` (a print function, or None)."""
     config.validate()
     if config.algo not in _ENTRY_POINTS:
         raise NotImplementedError(f"algo {config.algo!r} is not available yet")
-    return importlib.import_module(_ENTRY_POINTS[config.algo]).train(config)
+    return importlib.import_module(_ENTRY_POINTS[config.algo]).train(config, **options)
 
 
 def sweep(config: Config, **values):

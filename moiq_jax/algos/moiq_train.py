@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import dataclasses
 import itertools
-import time
 from typing import Any, NamedTuple
 
 import jax
@@ -25,8 +24,9 @@ from moiq_jax.algos import moiq
 from moiq_jax.config import Config
 from moiq_jax.envs.wrappers import AutoReset, VmapWrapper
 from moiq_jax.evaluate import preference_returns
-from moiq_jax.experts import Demonstrations
+from moiq_jax.experts import Demonstrations, oracle_demonstrations
 from moiq_jax.networks import TanhGaussianActor, TwinVectorCritic
+from moiq_jax.runner import run_chunks
 
 
 @struct.dataclass
@@ -53,16 +53,18 @@ class Trainer(NamedTuple):
 
 
 def load_demonstrations(config: Config) -> Demonstrations:
-    """The configured demos file, or fresh oracle demonstrations for cdst; experts sorted by preference."""
+    """The configured demos file (its preferences must be the config's), or fresh oracle demonstrations;
+    experts sorted by preference."""
     env = envs.make(config.env, absorbing=True)
     if config.demos is not None:
         demos = Demonstrations.load(config.demos, env)
-    elif config.env == "cdst":
-        from moiq_jax.experts.cdst_oracle import record_demonstrations
-
-        demos = record_demonstrations(config.preferences, config.num_demos)
+        given = sorted(config.preferences)
+        recorded = sorted(map(tuple, np.round(np.asarray(demos.preferences), 6).tolist()))
+        if len(given) != len(recorded) or not np.allclose(given, recorded, atol=1e-5):
+            raise ValueError(f"the demos in {config.demos!r} are of preferences {recorded}, not the configured "
+                             f"{given}; set --preferences to match the file")
     else:
-        raise ValueError(f"no oracle experts for env {config.env!r}; pass a demos file")
+        demos = oracle_demonstrations(config.env, config.preferences, config.num_demos, config.seed)
     order = np.lexsort(np.asarray(demos.preferences).T[::-1])[::-1]  # descending, first objective first
     return jax.tree_util.tree_map(lambda x: np.asarray(x)[order], demos)
 
@@ -231,29 +233,16 @@ class TrainResult:
     seconds: float
 
 
-def train(config: Config, demos: Demonstrations | None = None, log=print, until=None) -> TrainResult:
+def train(config: Config, demos: Demonstrations | None = None, log=print, run_dir: str | None = None,
+          resume: bool = False, progress: bool = False, until=None) -> TrainResult:
     """Run Algorithm 1 for ``config``: jitted chunks of ``eval_interval`` env steps, logged in between;
-    with ``until``, stop after the first evaluation whose metrics (a dict of arrays) it holds true for."""
+    with ``run_dir``, also checkpointed after every chunk and resumable (see ``moiq_jax.runner``); with
+    ``until``, stopped after the first evaluation whose metrics (a dict of arrays) it holds true for."""
     trainer = make_train(config, demos)
-    start = time.perf_counter()
-    state = jax.jit(trainer.init)(jax.random.PRNGKey(config.seed))
-    run_chunk = jax.jit(trainer.run_chunk)
-    beta = jnp.float32(config.beta)
-    history = []
-    for _ in range(trainer.num_chunks):
-        state, metrics = run_chunk(state, beta)
-        metrics = jax.device_get(metrics)
-        history.append(metrics)
-        if log is not None:
-            steps = int(np.max(metrics["env_steps"]))
-            returns = np.round(np.asarray(metrics["eval_scalar_return"]), 2).tolist()
-            log(f"[{config.algo} beta={config.beta}] steps {steps}: scalarised returns {returns} "
-                f"({time.perf_counter() - start:.0f}s)")
-        if until is not None and until(metrics):
-            break
+    state, history, seconds = run_chunks(trainer, config, run_dir=run_dir, resume=resume, log=log, progress=progress,
+                                         until=until)
     stacked = {k: np.stack([h[k] for h in history]) for k in history[0]}
-    return TrainResult(config, state.learner.params, state.best_params, np.asarray(state.best_return),
-                       stacked, time.perf_counter() - start)
+    return TrainResult(config, state.learner.params, state.best_params, np.asarray(state.best_return), stacked, seconds)
 
 
 def sweep(config: Config, beta=None, seed=None, demos: Demonstrations | None = None) -> dict:

@@ -4,6 +4,13 @@ The agent is a small flax actor-critic on one-hot states. Episodes are sampled f
 dynamics (``TabularMDP``, the same transitions as the env's ``step`` with the absorbing state), each running
 the full time limit; the reward is the learned scalarised table. All functions are pure, so the caller
 vmaps them over experts and seeds.
+
+PPO here solves the same max-ent RL problem as soft value iteration (the inner problem of max-ent IRL,
+paper eq. 5): the rollout reward is the *soft* reward ``r(s, a) - temperature * log pi(a|s)``, so the
+fixed point is ``pi ~ exp(Q_soft / temperature)``. An entropy bonus in the loss instead (scaled against
+normalised advantages) lets PPO turn near-deterministic on the first, still meaningless rewards: it then
+loops forever on the cells the experts visited, the IRL step answers with a large absorbing-state reward,
+and the rounds lock into "end the episode as soon as possible" (all agents at the nearest treasure).
 """
 
 from __future__ import annotations
@@ -20,17 +27,30 @@ from moiq_jax.config import Config
 
 
 class ActorCritic(nn.Module):
-    """Action logits and state value from a one-hot state."""
+    """Action logits and state value from a one-hot state, from two separate tanh MLPs.
+
+    Separate trunks keep the value regression from overwriting the policy's features (with one shared
+    trunk the value loss's gradient was ~2000x the policy loss's and dominated every update)."""
 
     num_actions: int
     hidden: int
 
     @nn.compact
     def __call__(self, state_one_hot):
-        h = nn.tanh(nn.Dense(self.hidden)(state_one_hot))
-        h = nn.tanh(nn.Dense(self.hidden)(h))
-        logits = nn.Dense(self.num_actions, kernel_init=nn.initializers.orthogonal(0.01))(h)
-        return logits, nn.Dense(1)(h)[..., 0]
+        def trunk(x):
+            return nn.tanh(nn.Dense(self.hidden)(nn.tanh(nn.Dense(self.hidden)(x))))
+
+        logits = nn.Dense(self.num_actions, kernel_init=nn.initializers.orthogonal(0.01))(trunk(state_one_hot))
+        return logits, nn.Dense(1)(trunk(state_one_hot))[..., 0]
+
+
+def value_scale(mdp: TabularMDP, config: Config) -> float:
+    """A bound on the soft return: ``(reward_bound + temperature * log A) * sum_{t < H} gamma^t``.
+
+    The critic predicts values in these units, so its targets are O(1) whatever the learned reward's scale
+    (raw returns reach hundreds, and their gradients would swamp the policy's under the global-norm clip)."""
+    horizon = sum(config.gamma**t for t in range(mdp.horizon))
+    return (config.reward_bound + config.temperature * float(jnp.log(mdp.num_actions))) * horizon
 
 
 class PPOAgent(NamedTuple):
@@ -55,28 +75,38 @@ def ppo_agent(mdp: TabularMDP, config: Config):
     one_hot = jnp.eye(mdp.num_states)
     batch_size = config.ppo_num_envs * mdp.horizon
     minibatch = batch_size // config.ppo_minibatches
+    scale = value_scale(mdp, config)
+
+    def tables(params):
+        """Log-probabilities ``[S + 1, A]`` and values ``[S + 1]`` of every state: the net sees one-hot
+        states, so one pass over all ``S + 1`` of them, gathered per sample, is exact and far cheaper than a
+        pass per sample."""
+        logits, value = net.apply(params, one_hot)
+        return jax.nn.log_softmax(logits), value * scale
 
     def init(key):
         params = net.init(key, one_hot[0])
         return PPOAgent(params, optimiser.init(params))
 
     def policy(agent):
-        return jax.nn.softmax(net.apply(agent.params, one_hot)[0], axis=-1)
+        return jnp.exp(tables(agent.params)[0])
 
     def rollout(params, reward, key):
-        """``ppo_num_envs`` episodes from the start state; GAE advantages with bootstrap at the time limit."""
+        """``ppo_num_envs`` episodes from the start state with the soft reward; GAE advantages with
+        bootstrap at the time limit."""
+        log_pi, value = tables(params)
 
         def step(states, key):
-            logits, values = net.apply(params, one_hot[states])
-            actions = jax.random.categorical(key, logits)
-            log_probs = jax.nn.log_softmax(logits)[jnp.arange(states.shape[0]), actions]
-            return mdp.next_state[states, actions], (states, actions, log_probs, values, reward[states, actions])
+            actions = jax.random.categorical(key, log_pi[states])
+            log_probs, values = log_pi[states, actions], value[states]
+            soft_reward = reward[states, actions] - config.temperature * log_probs
+            return mdp.next_state[states, actions], (states, actions, log_probs, values, soft_reward)
 
         start = jnp.full((config.ppo_num_envs,), mdp.start)
         last, (states, actions, log_probs, values, rewards) = jax.lax.scan(
             step, start, jax.random.split(key, mdp.horizon)
         )
-        last_value = net.apply(params, one_hot[last])[1]
+        last_value = value[last]
 
         def gae(carry, xs):
             advantage, next_value = carry
@@ -90,16 +120,14 @@ def ppo_agent(mdp: TabularMDP, config: Config):
         return Batch(flat(states), flat(actions), flat(log_probs), flat(advantages), flat(advantages + values))
 
     def loss(params, batch):
-        logits, values = net.apply(params, one_hot[batch.states])
-        log_all = jax.nn.log_softmax(logits)
-        log_probs = jnp.take_along_axis(log_all, batch.actions[:, None], axis=-1)[:, 0]
+        log_pi, value = tables(params)
+        log_probs, values = log_pi[batch.states, batch.actions], value[batch.states]
         ratio = jnp.exp(log_probs - batch.log_probs)
         adv = (batch.advantages - batch.advantages.mean()) / (batch.advantages.std() + 1e-8)
         clipped = jnp.clip(ratio, 1 - config.ppo_clip, 1 + config.ppo_clip)
         policy_loss = -jnp.minimum(ratio * adv, clipped * adv).mean()
-        value_loss = 0.5 * ((values - batch.returns) ** 2).mean()
-        entropy = -(jnp.exp(log_all) * log_all).sum(-1).mean()
-        return policy_loss + 0.5 * value_loss - config.ppo_entropy * entropy
+        value_loss = 0.5 * (((values - batch.returns) / scale) ** 2).mean()
+        return policy_loss + 0.5 * value_loss
 
     def update(agent, key, reward):
         rollout_key, shuffle_key = jax.random.split(key)

@@ -60,3 +60,24 @@ register("dst-mini", lambda **kw: DeepSeaTreasure(MINI_MAP, **kw), 100,
          "Deep Sea Treasure, 6x6 mini map (paper sec. 4.1.2)")
 register("cdst", lambda **kw: ContinuousDeepSeaTreasure(CONVEX_MAP, **kw), 100,
          "Continuous Deep Sea Treasure: 2-D position, 2-D velocity action, convex map")
+
+
+def _mujoco(class_name: str) -> Callable[..., Env]:
+    """A factory that imports the MuJoCo envs (and MJX) only when one is built."""
+
+    def factory(**kwargs) -> Env:
+        from moiq_jax.envs import mujoco
+
+        return getattr(mujoco, class_name)(**kwargs)
+
+    return factory
+
+
+register("mo-hopper", _mujoco("Hopper"), 1000,
+         "MJX Hopper-v5: (x velocity, 10 x height, -|a|^2) + healthy (MO-Gymnasium mo-hopper-v5)")
+register("mo-walker2d", _mujoco("Walker2d"), 1000,
+         "MJX Walker2d-v5: (x velocity, -|a|^2) + healthy (MO-Gymnasium mo-walker2d-v5)")
+register("mo-halfcheetah", _mujoco("HalfCheetah"), 1000,
+         "MJX HalfCheetah-v5: (x velocity, -|a|^2) (MO-Gymnasium mo-halfcheetah-v5)")
+register("mo-ant", _mujoco("Ant"), 1000,
+         "MJX Ant-v5: (x velocity, -|a|^2) + healthy - contact cost (mo-ant-v5's objectives 0 and 2)")

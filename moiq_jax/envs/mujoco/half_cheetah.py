@@ -1,0 +1,28 @@
+"""mo-halfcheetah: Gymnasium's HalfCheetah-v5 with MO-Gymnasium's ``mo-halfcheetah-v5`` vector reward."""
+
+from __future__ import annotations
+
+import jax.numpy as jnp
+
+from moiq_jax.envs.mujoco.base import PlanarEnv, neg_squared_action
+
+
+class HalfCheetah(PlanarEnv):
+    """A planar cheetah (HalfCheetah-v5: frame skip 5, dt 0.05 s, reset noise 0.1: uniform on qpos,
+    Gaussian on qvel).
+
+    Observation (17): ``qpos[1:]`` and ``qvel`` (not clipped). Reward (2), as ``mo-halfcheetah-v5``:
+    x velocity and ``-sum(action ** 2)``. Never terminates.
+    """
+
+    xml_file = "half_cheetah.xml"
+    frame_skip = 5
+    reset_noise_scale = 0.1
+    qvel_noise_normal = True
+    reward_dim = 2
+    observation_size = 17
+    action_size = 6
+
+    def reward_and_done(self, before, after, action):
+        reward = jnp.stack([self.x_velocity(before, after), neg_squared_action(action)])
+        return reward, jnp.zeros((), bool)

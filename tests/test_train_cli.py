@@ -1,0 +1,112 @@
+"""`moiq train` through the real console script: kill, resume, divergence and bad input."""
+
+import os
+import shutil
+import signal
+import subprocess
+import time
+
+import jax
+import numpy as np
+import pytest
+
+import moiq_jax
+from moiq_jax import Config
+from moiq_jax.algos.moiq_train import make_train
+from moiq_jax.checkpoint import Checkpoints
+
+MOIQ = shutil.which("moiq")
+pytestmark = pytest.mark.skipif(MOIQ is None, reason="the package is not installed (pip install -e .)")
+
+# Eight chunks of 300 env steps; tiny networks so that compilation dominates.
+SMALL = {"total_steps": 2400, "eval_interval": 300, "hidden_sizes": (8, 8), "batch_size": 8, "learning_starts": 60,
+         "buffer_size": 2400}
+FLAGS = [*(arg for name, value in SMALL.items() for arg in ("--" + name.replace("_", "-"), *map(str, np.atleast_1d(value)))),
+         "--no-progress"]
+
+
+def latest_state(run_dir, config):
+    like = jax.jit(make_train(config).init)(jax.random.PRNGKey(config.seed))
+    checkpoints = Checkpoints(os.path.join(run_dir, "checkpoints"))
+    try:
+        return checkpoints.latest_step(), checkpoints.restore(like)[0]
+    finally:
+        checkpoints.close()
+
+
+def test_a_killed_run_resumes_to_the_same_result(tmp_path):
+    config = Config(**SMALL)
+    reference_dir = tmp_path / "reference"
+    moiq_jax.train(config, run_dir=str(reference_dir), log=None)
+
+    run_dir = tmp_path / "killed"
+    process = subprocess.Popen([MOIQ, "train", *FLAGS, "--run-dir", str(run_dir)],
+                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    latest = run_dir / "checkpoints" / "latest"
+    deadline = time.time() + 240
+    while time.time() < deadline and process.poll() is None:
+        steps = [int(p.name) for p in latest.iterdir() if p.name.isdigit()] if latest.exists() else []
+        if any(s > 0 for s in steps):
+            break
+        time.sleep(0.05)
+    process.send_signal(signal.SIGKILL)
+    process.wait()
+    killed_at, _ = latest_state(run_dir, config)
+    assert 0 < killed_at < config.total_steps, f"the run was not stopped mid-way (last checkpoint {killed_at})"
+
+    out = subprocess.run([MOIQ, "train", "--resume", str(run_dir), "--no-progress"], check=False,
+                         capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    assert "returns per preference" in out.stdout
+
+    # Same metrics, row for row, and the same final training state, bit for bit.
+    assert (run_dir / "metrics.csv").read_text() == (reference_dir / "metrics.csv").read_text()
+    step_a, reference = latest_state(reference_dir, config)
+    step_b, resumed = latest_state(run_dir, config)
+    assert step_a == step_b == config.total_steps
+    for a, b in zip(jax.tree.leaves(reference), jax.tree.leaves(resumed)):
+        if jax.dtypes.issubdtype(a.dtype, jax.dtypes.prng_key):
+            a, b = jax.random.key_data(a), jax.random.key_data(b)
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+
+
+def test_divergence_stops_with_the_step_and_keeps_the_last_good_checkpoint(tmp_path):
+    run_dir = tmp_path / "nan"
+    out = subprocess.run([MOIQ, "train", *FLAGS, "--critic-lr", "1e8", "--actor-lr", "1e8", "--run-dir", str(run_dir)],
+                         check=False, capture_output=True, text=True, timeout=300)
+    assert out.returncode == 3
+    assert "training diverged: non-finite" in out.stderr and "critic_loss" in out.stderr
+    assert "env step 300; the last good checkpoint is at env step 0" in out.stderr
+    step, state = latest_state(run_dir, Config(**SMALL, critic_lr=1e8, actor_lr=1e8))
+    assert step == 0
+    assert all(np.all(np.isfinite(x)) for x in jax.tree.leaves(state.learner.params))
+
+
+def moiq(*args):
+    return subprocess.run([MOIQ, *args], check=False, capture_output=True, text=True, timeout=120)
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--env", "hopper"], "unknown env 'hopper'; known envs:"),
+        (["--algo", "gail"], "unknown algo 'gail'"),
+        (["--preferences", "0.9,0.1,0.0"], "each preference needs 2 weights"),
+        (["--preferences", "0.9,0.2"], "must sum to 1"),
+        (["--preferences", "1.5,-0.5"], "non-negative"),
+        (["--beta", "-1"], "beta must be non-negative"),
+        (["--demos", "missing.npz"], "demos file 'missing.npz' does not exist"),
+    ],
+)
+def test_bad_input_is_a_clear_error(args, message, tmp_path):
+    out = moiq("train", *args, "--run-dir", str(tmp_path / "run"))
+    assert out.returncode == 2, out.stderr
+    assert message in out.stderr
+
+
+def test_an_existing_run_dir_needs_resume(tmp_path):
+    (tmp_path / "run").mkdir()
+    (tmp_path / "run" / "config.json").write_text("{}")
+    out = moiq("train", "--run-dir", str(tmp_path / "run"))
+    assert out.returncode == 2
+    assert "already exists; continue it with `moiq train --resume" in out.stderr
