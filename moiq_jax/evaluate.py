@@ -1,4 +1,5 @@
-"""Evaluation: vector returns of policies over whole episodes, all episodes run in parallel."""
+"""Evaluation: vector returns of policies over whole episodes, all episodes run in parallel;
+``evaluate(params, env, preferences)`` for trained MOIQ / IQ-Learn parameters."""
 
 from __future__ import annotations
 
@@ -6,6 +7,7 @@ from collections.abc import Callable
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from moiq_jax.envs.base import Env
 from moiq_jax.envs.wrappers import VmapWrapper
@@ -53,3 +55,35 @@ def random_policy(env: Env) -> Policy:
     if env.discrete:
         return lambda key, obs: jax.random.randint(key, (), 0, env.num_actions)
     return lambda key, obs: jax.random.uniform(key, (env.action_size,), minval=-1.0, maxval=1.0)
+
+
+def preference_returns(nets, actor_params, env: Env, preferences, key, num_episodes: int) -> jax.Array:
+    """Jittable: vector returns ``[P, num_episodes, d]`` of the deterministic preference-conditioned
+    policy ``nets.act`` (``moiq.Networks``) for each of the ``P`` preferences."""
+
+    def one(preference, k):
+        policy = lambda _, obs: nets.act(actor_params, obs[None], preference)[0]
+        return episode_returns(env, policy, k, num_episodes)["returns"]
+
+    return jax.vmap(one)(preferences, jax.random.split(key, preferences.shape[0]))
+
+
+def evaluate(params, env: Env | str, preferences, episodes: int = 1, seed: int = 0) -> np.ndarray:
+    """Mean undiscounted vector returns ``[P, d]`` over ``episodes`` episodes of the deterministic policy
+    of trained MOIQ parameters (``TrainResult.best_params`` or ``final_params``) for each preference.
+
+    ``env`` is an env or a registered name; a name is made with the absorbing state, as in training
+    (a policy trained with it observes the absorbing flag). Preferences may be any, not just the experts'.
+    """
+    from moiq_jax import envs
+    from moiq_jax.algos.moiq import networks_for, observation_size
+
+    env = envs.make(env, absorbing=True) if isinstance(env, str) else env
+    nets = networks_for(params)
+    expected = observation_size(params)
+    if expected != env.observation_size:
+        raise ValueError(f"the policy observes {expected} values but the env gives {env.observation_size}; "
+                         "was it trained with the absorbing state (envs.make(name, absorbing=True))?")
+    prefs = jnp.asarray(preferences, jnp.float32)
+    run = jax.jit(lambda actor, key: preference_returns(nets, actor, env, prefs, key, episodes))
+    return np.asarray(run(params.actor, jax.random.PRNGKey(seed)).mean(axis=1))

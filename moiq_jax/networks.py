@@ -80,3 +80,20 @@ def sample_tanh_gaussian(key, mean, log_std):
     """A reparameterised sample ``a = tanh(mean + std * eps)`` and its log-probability."""
     pre_tanh = mean + jnp.exp(log_std) * jax.random.normal(key, mean.shape, mean.dtype)
     return jnp.tanh(pre_tanh), tanh_gaussian_log_prob(pre_tanh, mean, log_std)
+
+
+def sample_action(key, mean, log_std, action_scale: float = 1.0):
+    """An action of the policy ``clip(action_scale * tanh(u), -1, 1)`` with ``u ~ N(mean, std)``, and the
+    log-density of the unclipped ``action_scale * tanh(u)``.
+
+    With ``action_scale > 1`` the policy reaches the faces of the action box ``[-1, 1]`` at finite ``u``
+    (tanh alone reaches them only as ``u -> inf``, which the entropy term prevents); tasks whose optimal
+    actions are full-speed moves, as continuous DST's, need exactly +-1. The clip is the env's own.
+    """
+    action, log_prob = sample_tanh_gaussian(key, mean, log_std)
+    return jnp.clip(action_scale * action, -1.0, 1.0), log_prob - mean.shape[-1] * jnp.log(action_scale)
+
+
+def deterministic_action(mean, action_scale: float = 1.0):
+    """The evaluation action of the same policy: ``clip(action_scale * tanh(mean), -1, 1)``."""
+    return jnp.clip(action_scale * jnp.tanh(mean), -1.0, 1.0)

@@ -30,8 +30,9 @@ def _summary(metrics: dict) -> str:
 
 
 def run_chunks(trainer, config, run_dir: str | None = None, resume: bool = False, log=print,
-               progress: bool = False):
-    """Run every chunk of ``trainer`` for ``config``; returns ``(state, history list, seconds)``.
+               progress: bool = False, until=None):
+    """Run every chunk of ``trainer`` for ``config``, or with ``until`` (metrics -> bool) up to the first
+    chunk whose metrics it holds true for; returns ``(state, history list, seconds)``.
 
     With ``run_dir``: metrics go to ``run_dir`` (RunLog), the state after each chunk and the best
     parameters to ``run_dir/checkpoints``; ``resume=True`` continues from the newest checkpoint there.
@@ -81,6 +82,8 @@ def run_chunks(trainer, config, run_dir: str | None = None, resume: bool = False
             if log is not None:
                 log(f"[{config.algo} beta={config.beta}] steps {step}: {_summary(metrics)} "
                     f"({time.perf_counter() - start:.0f}s)")
+            if until is not None and until(metrics):
+                break
     finally:
         if runlog is not None:
             runlog.close()

@@ -4,9 +4,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import optax
+import pytest
 
 from moiq_jax.algos import moiq
-from moiq_jax.networks import TanhGaussianActor, TwinVectorCritic, sample_tanh_gaussian
+from moiq_jax.networks import TanhGaussianActor, TwinVectorCritic, sample_tanh_gaussian, tanh_gaussian_log_prob
 
 HYPER = moiq.Hyper(gamma=0.9, alpha_reg=0.5, target_entropy=-2.0)
 NETS = moiq.Networks(TwinVectorCritic((16, 16), 2), TanhGaussianActor((16, 16), 2))
@@ -32,8 +33,9 @@ def _batches(num_experts, per_expert, key=1):
     }
 
 
-def _iq_learn_reference(params, alpha, batch, w, key):
-    """IQ-Learn's critic loss written out with scalar critics, as in its reference implementation."""
+def _iq_learn_reference(critic, params, alpha, batch, w, key, use_target=True):
+    """IQ-Learn's critic loss written out with scalar critics, as in its reference implementation: V(s')
+    from the target critic, or with ``use_target=False`` from the online ``critic`` (with gradient)."""
     current_key, next_key = jax.random.split(key)
     n = batch["obs"].shape[0]
     ws = jnp.tile(w, (n, 1))
@@ -42,28 +44,34 @@ def _iq_learn_reference(params, alpha, batch, w, key):
         action, log_prob = sample_tanh_gaussian(k, *NETS.actor.apply(params.actor, obs, ws))
         return jnp.min(NETS.critic.apply(critic_params, obs, action, ws) @ w, axis=0) - alpha * log_prob
 
-    v = scalar_v(params.critic, batch["obs"], current_key)
-    y = HYPER.gamma * (1 - batch["done"]) * scalar_v(params.target_critic, batch["next_obs"], next_key)
+    v = scalar_v(critic, batch["obs"], current_key)
+    y = HYPER.gamma * (1 - batch["done"]) * scalar_v(params.target_critic if use_target else critic,
+                                                     batch["next_obs"], next_key)
     losses = []
-    for q in NETS.critic.apply(params.critic, batch["obs"], batch["action"], ws) @ w:
+    for q in NETS.critic.apply(critic, batch["obs"], batch["action"], ws) @ w:
         r = q - y
         expert = batch["is_expert"]
         losses.append(-r[expert].mean() + (v - y).mean() + (r**2).mean() / (4 * HYPER.alpha_reg))
     return sum(losses) / 2
 
 
-def test_one_expert_loss_is_iq_learn_for_any_beta():
+@pytest.mark.parametrize("use_target", [True, False])
+def test_one_expert_loss_and_gradient_are_iq_learns_for_any_beta(use_target):
     prefs = jnp.array([[0.7, 0.3]])
     learner, _ = _learner(prefs)
-    batches = _batches(1, 8)
-    key = jax.random.PRNGKey(5)
-    expected = _iq_learn_reference(
-        learner.params, 0.2, jax.tree_util.tree_map(lambda x: x[0], batches), prefs[0], jax.random.split(key, 1)[0]
-    )
+    params, batches, key = learner.params, _batches(1, 8), jax.random.PRNGKey(5)
+    hyper = HYPER._replace(use_target=use_target)
+    reference = lambda critic: _iq_learn_reference(
+        critic, params, 0.2, jax.tree_util.tree_map(lambda x: x[0], batches), prefs[0], jax.random.split(key, 1)[0],
+        use_target)
+    expected, expected_grad = jax.value_and_grad(reference)(params.critic)
     for beta in (0.0, 5.0):  # one expert has no neighbours: the penalty vanishes
-        loss, metrics = moiq.critic_loss(learner.params.critic, NETS, learner.params, batches, prefs, beta, key, HYPER)
+        (loss, metrics), grad = jax.value_and_grad(moiq.critic_loss, has_aux=True)(
+            params.critic, NETS, params, batches, prefs, beta, key, hyper)
         np.testing.assert_allclose(loss, expected, rtol=1e-5)
         assert float(metrics["penalty"]) == 0.0
+        for got, want in zip(jax.tree_util.tree_leaves(grad), jax.tree_util.tree_leaves(expected_grad)):
+            np.testing.assert_allclose(got, want, rtol=1e-4, atol=1e-6)
 
 
 def test_penalty_is_zero_with_zero_gradient_for_equal_rewards():
@@ -95,6 +103,32 @@ def test_critic_loss_penalty_ties_experts_and_beta_scales_it():
     assert float(m0["penalty"]) > 0
     np.testing.assert_allclose(loss5 - loss0, 5.0 * m0["penalty"], rtol=1e-4)
     np.testing.assert_allclose(loss0, m0["iq_loss"].sum(), rtol=1e-6)
+
+
+def test_penalty_compares_every_experts_rewards_on_the_shared_rows():
+    """The penalty's common batch is rows 0 and 6 of each expert's 8 (every 2E-th); expert j's rewards
+    there are ``Q(s, a, w_j) - gamma (1 - done) V_target(s', w_j)`` with a' drawn, as for its own rows, from
+    the noise of one pass over its own rows followed by the common ones."""
+    prefs = jnp.array([[0.9, 0.1], [0.5, 0.5], [0.1, 0.9]])
+    learner, _ = _learner(prefs)
+    params, batches, key = learner.params, _batches(3, 8), jax.random.PRNGKey(7)
+    common = {k: batches[k][:, ::6].reshape(6, *batches[k].shape[2:]) for k in ("obs", "action", "next_obs", "done")}
+    np.testing.assert_array_equal(common["obs"][1], batches["obs"][0, 6])
+    rewards = []
+    for j, expert_key in enumerate(jax.random.split(key, 3)):
+        rows = {k: jnp.concatenate([batches[k][j], common[k]]) for k in common}
+        ws = jnp.tile(prefs[j], (14, 1))
+        mean, log_std = NETS.actor.apply(params.actor, rows["next_obs"], ws)
+        pre_tanh = mean + jnp.exp(log_std) * jax.random.normal(jax.random.split(expert_key)[1], mean.shape)
+        q_next = NETS.critic.apply(params.target_critic, rows["next_obs"], jnp.tanh(pre_tanh), ws)  # (2, 14, 2)
+        q_next = jnp.where((q_next[0] @ prefs[j] <= q_next[1] @ prefs[j])[:, None], q_next[0], q_next[1])
+        v_next = q_next - 0.2 * tanh_gaussian_log_prob(pre_tanh, mean, log_std)[:, None]
+        r = NETS.critic.apply(params.critic, rows["obs"], rows["action"], ws) - HYPER.gamma * (
+            1 - rows["done"])[:, None] * v_next
+        rewards.append(np.asarray(r[:, 8:]))  # (2 twins, 6 common rows, 2)
+    expected = np.mean(sum(np.linalg.norm(rewards[j + 1] - rewards[j], axis=-1) for j in range(2)))
+    _, metrics = moiq.critic_loss(params.critic, NETS, params, batches, prefs, 5.0, key, HYPER)
+    np.testing.assert_allclose(metrics["penalty"], expected, rtol=1e-4)
 
 
 def test_update_runs_jitted_for_all_experts_and_moves_targets_slowly():

@@ -21,13 +21,29 @@ def demos():
     return moiq_train.load_demonstrations(TINY)
 
 
-def test_train_smoke_moiq(demos):
-    result = moiq_jax.train(TINY)
+@pytest.fixture(scope="module")
+def trained(demos):
+    return moiq_train.train(TINY.replace(action_scale=1.1), demos, log=None)
+
+
+def test_train_smoke_moiq(trained):
+    result = trained
     h = result.history
     assert h["eval_return"].shape == (2, 3, 2) and h["iq_loss"].shape == (2, 3) and h["alpha"].shape == (2, 3)
     np.testing.assert_array_equal(h["env_steps"], [20, 40])
     assert np.all(np.isfinite(h["critic_loss"])) and np.all(h["penalty"] > 0)
     assert np.isfinite(result.best_return) and result.best_return == h["eval_scalar_return"].mean(1).max()
+
+
+def test_evaluate_reproduces_the_best_models_training_evaluation(trained):
+    result = trained
+    best = int(np.argmax(result.history["eval_scalar_return"].mean(1)))
+    returns = moiq_jax.evaluate(result.best_params, "cdst", TINY.preferences)
+    np.testing.assert_allclose(returns, result.history["eval_return"][best], rtol=1e-6)
+    transfer = moiq_jax.evaluate(result.best_params, "cdst", [[1 - 0.05 * k, 0.05 * k] for k in range(1, 20)])
+    assert transfer.shape == (19, 2) and np.all(transfer[:, 1] <= -1)  # every episode costs at least one step
+    with pytest.raises(ValueError, match="absorbing"):
+        moiq_jax.evaluate(result.best_params, moiq_jax.envs.make("cdst"), TINY.preferences)
 
 
 def test_iq_learn_trains_one_model_per_expert_without_penalty(demos):

@@ -23,9 +23,9 @@ from moiq_jax import envs, replay
 from moiq_jax.algos import moiq
 from moiq_jax.config import Config
 from moiq_jax.envs.wrappers import AutoReset, VmapWrapper
-from moiq_jax.evaluate import episode_returns
+from moiq_jax.evaluate import preference_returns
 from moiq_jax.experts import Demonstrations, oracle_demonstrations
-from moiq_jax.networks import TanhGaussianActor, TwinVectorCritic, sample_tanh_gaussian
+from moiq_jax.networks import TanhGaussianActor, TwinVectorCritic
 from moiq_jax.runner import run_chunks
 
 
@@ -98,15 +98,11 @@ def make_train(config: Config, demos: Demonstrations | None = None) -> Trainer:
     env = envs.make(config.env, absorbing=True)
     rollout_env = VmapWrapper(AutoReset(env), config.num_envs)
     nets = moiq.Networks(TwinVectorCritic(config.hidden_sizes, env.reward_dim),
-                         TanhGaussianActor(config.hidden_sizes, env.action_size))
+                         TanhGaussianActor(config.hidden_sizes, env.action_size), config.action_scale)
     optimisers = moiq.Optimisers(optax.adam(config.critic_lr), optax.adam(config.actor_lr), optax.adam(config.alpha_lr))
-    hyper = moiq.Hyper(config.gamma, config.alpha_reg, -float(env.action_size))
+    hyper = moiq.Hyper(config.gamma, config.alpha_reg, -float(env.action_size), config.use_target)
     iterations_per_chunk = config.eval_interval // config.num_envs
     num_chunks = config.total_steps // config.eval_interval
-
-    def policy_action(actor_params, obs, preference, key):
-        w = jnp.broadcast_to(preference, (obs.shape[0], preference.shape[-1]))
-        return sample_tanh_gaussian(key, *nets.actor.apply(actor_params, obs, w))[0]
 
     def init(key, prefs):
         num_experts = prefs.shape[0]
@@ -137,7 +133,7 @@ def make_train(config: Config, demos: Demonstrations | None = None) -> Trainer:
         key, act_key, random_key, update_key = jax.random.split(state.key, 4)
         num_experts = prefs.shape[0]
         obs = state.env_state.obs  # [E, num_envs, obs]
-        learned = jax.vmap(policy_action, in_axes=(None, 0, 0, 0))(
+        learned, _ = jax.vmap(nets.sample, in_axes=(None, 0, 0, 0))(
             state.learner.params.actor, obs, prefs, jax.random.split(act_key, num_experts))
         random = jax.random.uniform(random_key, learned.shape, minval=-1.0, maxval=1.0)
         action = jnp.where(state.env_steps < config.learning_starts, random, learned)
@@ -166,15 +162,8 @@ def make_train(config: Config, demos: Demonstrations | None = None) -> Trainer:
 
     def evaluate_params(params, prefs, expert_data, key):
         """Deterministic-policy vector returns per preference and the recovered-reward correlation."""
-        def one(preference, k):
-            def policy(_, obs):
-                mean, _ = nets.actor.apply(params.actor, obs[None], preference[None])
-                return jnp.tanh(mean[0])
-
-            return episode_returns(env, policy, k, config.eval_episodes)["returns"].mean(0)
-
-        keys = jax.random.split(key, prefs.shape[0] + 1)
-        returns = jax.vmap(one)(prefs, keys[1:])
+        keys = jax.random.split(key)
+        returns = preference_returns(nets, params.actor, env, prefs, keys[1], config.eval_episodes).mean(axis=1)
         alphas = jnp.exp(params.log_alpha)
 
         def correlation(data_i, preference, alpha, k):
@@ -245,11 +234,13 @@ class TrainResult:
 
 
 def train(config: Config, demos: Demonstrations | None = None, log=print, run_dir: str | None = None,
-          resume: bool = False, progress: bool = False) -> TrainResult:
+          resume: bool = False, progress: bool = False, until=None) -> TrainResult:
     """Run Algorithm 1 for ``config``: jitted chunks of ``eval_interval`` env steps, logged in between;
-    with ``run_dir``, also checkpointed after every chunk and resumable (see ``moiq_jax.runner``)."""
+    with ``run_dir``, also checkpointed after every chunk and resumable (see ``moiq_jax.runner``); with
+    ``until``, stopped after the first evaluation whose metrics (a dict of arrays) it holds true for."""
     trainer = make_train(config, demos)
-    state, history, seconds = run_chunks(trainer, config, run_dir=run_dir, resume=resume, log=log, progress=progress)
+    state, history, seconds = run_chunks(trainer, config, run_dir=run_dir, resume=resume, log=log, progress=progress,
+                                         until=until)
     stacked = {k: np.stack([h[k] for h in history]) for k in history[0]}
     return TrainResult(config, state.learner.params, state.best_params, np.asarray(state.best_return), stacked, seconds)
 

@@ -101,9 +101,11 @@ class ContinuousDeepSeaTreasure(Env):
             truncated=jnp.zeros((), bool),  # only a time limit truncates
         )
 
-    def optimal_actions(self, treasure: tuple[int, int]) -> np.ndarray:
+    def optimal_actions(self, treasure: tuple[int, int], prefer=None) -> np.ndarray:
         """Table ``[rows * 2, cols * 2, 2]`` over lattice points of king-move actions that follow a
-        shortest path to ``treasure`` without touching another treasure (zeros where unreachable)."""
+        shortest path to ``treasure`` without touching another treasure (zeros where unreachable).
+        Among several shortest moves it takes the first in ``KING_MOVES`` order, or with ``prefer``
+        (lattice point -> number) the first whose next point has the smallest ``prefer`` value."""
         treasure = tuple(int(i) for i in treasure)
         if treasure not in self.sea_map.treasures():
             raise ValueError(f"{treasure} is not a treasure cell; treasures: {self.sea_map.treasures()}")
@@ -114,20 +116,25 @@ class ContinuousDeepSeaTreasure(Env):
             for x in range(width):
                 if dist[y, x] <= 0:
                     continue
-                for dy, dx in KING_MOVES:
-                    ny, nx = y + dy, x + dx
-                    if 0 <= ny < height and 0 <= nx < width and dist[ny, nx] == dist[y, x] - 1:
-                        table[y, x] = (dy, dx)
-                        break
+                moves = [(dy, dx) for dy, dx in KING_MOVES if 0 <= y + dy < height and 0 <= x + dx < width
+                         and dist[y + dy, x + dx] == dist[y, x] - 1]
+                if moves:
+                    table[y, x] = moves[0] if prefer is None else min(moves, key=lambda m: prefer((y + m[0], x + m[1])))
         return table
 
     def optimal_policy(self, treasure: tuple[int, int]):
         """A deterministic jittable policy ``obs -> action`` that reaches ``treasure`` in the fewest steps."""
-        table = jnp.asarray(self.optimal_actions(treasure))
-        limit = jnp.array(table.shape[:2]) - 1
+        return lattice_policy(self.optimal_actions(treasure))
 
-        def policy(obs):
-            point = jnp.clip(jnp.floor(RESOLUTION * obs).astype(jnp.int32), 0, limit)
-            return table[point[0], point[1]]
 
-        return policy
+def lattice_policy(table):
+    """The deterministic jittable policy ``position -> table[lattice point below the position]`` for a
+    table of actions over lattice points, ``[rows * RESOLUTION, cols * RESOLUTION, 2]``."""
+    table = jnp.asarray(table)
+    limit = jnp.array(table.shape[:2]) - 1
+
+    def policy(obs):
+        point = jnp.clip(jnp.floor(RESOLUTION * obs).astype(jnp.int32), 0, limit)
+        return table[point[0], point[1]]
+
+    return policy

@@ -1,5 +1,11 @@
 """Continuous-DST experts: the exact optimal deterministic policy for each preference, and their
-demonstrations recorded in the absorbing-state env so every episode has the same length (sec. 4.1.1)."""
+demonstrations recorded in the absorbing-state env so every episode has the same length (sec. 4.1.1).
+
+Many shortest paths reach a treasure; the experts take one that keeps clear of hazards (``clear_actions``),
+so that a learner imitating them up to small action errors does not fall into a neighbouring treasure or
+against rock: every path point lies on the lattice, and a point on a cell border next to a hazard is
+lost to the smallest error to that side.
+"""
 
 from __future__ import annotations
 
@@ -7,6 +13,7 @@ import jax
 import numpy as np
 
 from moiq_jax import envs
+from moiq_jax.envs.cdst import RESOLUTION, lattice_policy
 from moiq_jax.experts.demonstrations import Demonstrations
 from moiq_jax.preferences import check_preferences
 
@@ -18,6 +25,26 @@ def best_treasure(env, preference) -> tuple[tuple[int, int], np.ndarray]:
     returns = env.unwrapped.treasure_returns()
     cell = max(returns, key=lambda t: float(np.dot(preference, returns[t])))
     return cell, returns[cell]
+
+
+def hazards_near(sea_map, point, treasure) -> int:
+    """How many of the cells touching lattice ``point`` (position ``point / RESOLUTION``; up to 4 when it
+    lies on cell borders) are rock, a treasure other than ``treasure``, or outside the map."""
+    cells = {tuple((np.asarray(point) + np.asarray(offset)) // RESOLUTION)
+             for offset in ((0, 0), (-1, 0), (0, -1), (-1, -1))
+             if all((point[i] + offset[i]) % RESOLUTION == RESOLUTION - 1 or offset[i] == 0 for i in range(2))}
+    count = 0
+    for r, c in cells:
+        inside = 0 <= r < sea_map.rows and 0 <= c < sea_map.cols
+        count += (not inside) or ((r, c) != tuple(treasure) and sea_map.grid[r, c] != 0)
+    return count
+
+
+def clear_actions(env, treasure) -> np.ndarray:
+    """Table over lattice points of king-move actions on a shortest path to ``treasure``, choosing among
+    the shortest moves the one whose next point touches the fewest hazards (``hazards_near``)."""
+    sea_map = env.unwrapped.sea_map
+    return env.unwrapped.optimal_actions(treasure, prefer=lambda point: hazards_near(sea_map, point, treasure))
 
 
 def expert_returns(preferences) -> np.ndarray:
@@ -45,7 +72,7 @@ def record_demonstrations(preferences, num_demos: int = 10) -> Demonstrations:
         _, trajectory = jax.lax.scan(step, env.reset(jax.random.PRNGKey(0)), None, length=horizon)
         return trajectory
 
-    per_expert = [record(env.unwrapped.optimal_policy(best_treasure(env, w)[0])) for w in prefs]
+    per_expert = [record(lattice_policy(clear_actions(env, best_treasure(env, w)[0]))) for w in prefs]
     obs, actions, next_obs, rewards, dones = (
         np.repeat(np.stack([np.asarray(t[i]) for t in per_expert])[:, None], num_demos, axis=1) for i in range(5)
     )
@@ -58,6 +85,6 @@ def record_demonstrations(preferences, num_demos: int = 10) -> Demonstrations:
         lengths=np.full((len(prefs), num_demos), horizon, np.int32),
         preferences=prefs,
         env=ENV_NAME,
-        metadata={"expert": "exact optimal policy (cdst oracle)", "absorbing": True},
+        metadata={"expert": "exact optimal policy, hazard-clear path (cdst oracle)", "absorbing": True},
     ).validate(env)
 

@@ -1,0 +1,99 @@
+"""MOIQ speed on continuous DST, in one run: throughput of ``train``, a vmapped sweep against the same
+runs one after another, and the wall time until the policy reaches the experts' exact returns.
+
+    python benchmarks/moiq_speed.py [--steps 10000] [--seeds 5] [--expert-steps 100000]
+
+- Throughput: one compiled ``train(key, beta)`` of the cdst default config for ``--steps`` env steps per
+  expert (compiled ahead, so compile time is reported apart): env steps/s (all experts) and updates/s.
+- Sweep: betas {5, 0} x ``--seeds`` seeds for ``--steps`` steps as one vmapped program (``moiq_jax.sweep``'s
+  program) against the same runs one after another with one compiled single-run program; both timed after
+  compilation, compile times printed too.
+- Time to expert return: ``moiq_jax.train`` (compile included) until an evaluation in which every expert's
+  deterministic policy gets exactly its expert's scalarised return, or ``--expert-steps`` steps.
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import platform
+import time
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from moiq_jax.algos import moiq_train
+from moiq_jax.config import tuned
+from moiq_jax.experts.cdst_oracle import expert_returns
+
+
+def compiled(fn, *args):
+    """``fn`` compiled ahead for ``args``, and the seconds compiling took."""
+    start = time.perf_counter()
+    program = jax.jit(fn).lower(*args).compile()
+    return program, time.perf_counter() - start
+
+
+def timed(program, *args):
+    start = time.perf_counter()
+    jax.block_until_ready(program(*args))
+    return time.perf_counter() - start
+
+
+def num_updates(config) -> int:
+    """Gradient updates of one run: ``updates_per_step`` per vectorised env step once warm-up is over."""
+    iterations = config.total_steps // config.num_envs
+    ready = sum((i + 1) * config.num_envs > config.learning_starts for i in range(iterations))
+    return ready * config.updates_per_step
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--steps", type=int, default=10_000, help="env steps per expert of the timed runs")
+    parser.add_argument("--seeds", type=int, default=5, help="seeds per beta in the sweep comparison")
+    parser.add_argument("--expert-steps", type=int, default=100_000, help="step limit of the time-to-expert run")
+    args = parser.parse_args()
+
+    config = tuned("cdst").replace(total_steps=args.steps, eval_interval=min(args.steps, 5_000))
+    demos = moiq_train.load_demonstrations(config)
+    num_experts = len(config.preferences)
+    print(f"{platform.processor() or platform.machine()}, {jax.device_count()} {jax.default_backend()} device(s); "
+          f"cdst, {num_experts} experts, hidden {config.hidden_sizes}, batch {config.batch_size}+{config.batch_size} "
+          f"per expert, {config.num_envs} envs per expert")
+
+    trainer = moiq_train.make_train(config, demos)
+    key, beta = jax.random.PRNGKey(0), jnp.float32(5.0)
+    single, compile_single = compiled(trainer.train, key, beta)
+    seconds = timed(single, key, beta)
+    updates = num_updates(config)
+    print(f"train: {num_experts * args.steps / seconds:,.0f} env steps/s ({args.steps / seconds:,.0f} per expert), "
+          f"{updates / seconds:,.0f} updates/s ({1e3 * seconds / updates:.2f} ms per update incl. env steps and "
+          f"evaluations; {args.steps} steps per expert in {seconds:.1f} s, compile {compile_single:.1f} s)")
+
+    grid = list(itertools.product([5.0, 0.0], range(args.seeds)))
+    keys = jnp.stack([jax.random.PRNGKey(seed) for _, seed in grid])
+    betas = jnp.asarray([b for b, _ in grid], jnp.float32)
+    swept, compile_sweep = compiled(jax.vmap(trainer.train), keys, betas)
+    sweep_seconds = timed(swept, keys, betas)
+    sequential_seconds = sum(timed(single, k, b) for k, b in zip(keys, betas))
+    print(f"sweep of {len(grid)} runs (betas 5, 0 x {args.seeds} seeds): vmapped {sweep_seconds:.1f} s "
+          f"(compile {compile_sweep:.1f} s) vs one after another {sequential_seconds:.1f} s: "
+          f"{sequential_seconds / sweep_seconds:.2f}x faster")
+
+    target = (expert_returns(np.asarray(config.preferences)) * np.asarray(config.preferences)).sum(1)
+    reached = lambda metrics: np.allclose(metrics["eval_scalar_return"], target, atol=1e-3)
+    expert_config = tuned("cdst").replace(total_steps=args.expert_steps)
+    result = moiq_train.train(expert_config, demos, log=None, until=reached)
+    steps = int(result.history["env_steps"][-1])
+    if reached({k: v[-1] for k, v in result.history.items()}):
+        print(f"time to expert return (all {num_experts} preferences exact): {result.seconds:.1f} s "
+              f"({steps} env steps per expert, compile included)")
+    else:
+        print(f"expert return not reached in {steps} env steps per expert ({result.seconds:.1f} s); final "
+              f"scalarised returns {np.round(result.history['eval_scalar_return'][-1], 2).tolist()} vs expert "
+              f"{np.round(target, 2).tolist()}")
+
+
+if __name__ == "__main__":
+    main()
