@@ -13,7 +13,7 @@ import time
 
 import numpy as np
 
-from moiq_jax.config import Config
+from moiq_jax.config import Config, tuned
 
 
 def _cmd_envs(args) -> int:
@@ -110,7 +110,8 @@ def add_config_flags(parser: argparse.ArgumentParser) -> None:
 
 
 def config_from_args(args: argparse.Namespace) -> Config:
-    """The Config of a command: the file given by ``--config`` (if any), then the flags given."""
+    """The Config of a command: the env's tuned settings (``config.tuned``), then the file given by
+    ``--config`` (if any), then the flags given."""
     values = {}
     if args.config:
         values = load_config_file(args.config)
@@ -118,7 +119,7 @@ def config_from_args(args: argparse.Namespace) -> Config:
         given = getattr(args, field.name, None)
         if given is not None:
             values[field.name] = given
-    return Config(**values)
+    return tuned(values.pop("env", Config.env), **values)
 
 
 def load_config_file(path: str) -> dict:

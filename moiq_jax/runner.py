@@ -25,8 +25,8 @@ def _to_json(metrics: dict) -> dict:
 
 
 def _summary(metrics: dict) -> str:
-    returns = np.round(np.asarray(metrics.get("eval_scalar_return", [])), 2).tolist()
-    return f"scalarised returns {returns}"
+    returns = np.asarray(metrics.get("eval_scalar_return", []), float).reshape(-1)
+    return "scalarised returns [" + ", ".join(f"{r:.2f}" for r in returns) + "]"
 
 
 def run_chunks(trainer, config, run_dir: str | None = None, resume: bool = False, log=print,

@@ -12,6 +12,7 @@ import pytest
 from moiq_jax import Config
 from moiq_jax.checkpoint import Checkpoints
 from moiq_jax.cli import add_config_flags, config_from_args
+from moiq_jax.config import tuned
 from moiq_jax.runlog import RunLog
 
 
@@ -74,7 +75,8 @@ def parse(*argv):
 
 def test_flags_set_config_fields_and_override_a_config_file(tmp_path):
     cfg = parse("--beta", "3", "--preferences", "0.9,0.1", "0.1,0.9", "--no-learn-alpha", "--hidden-sizes", "64", "64")
-    assert cfg == Config(beta=3.0, preferences=((0.9, 0.1), (0.1, 0.9)), learn_alpha=False, hidden_sizes=(64, 64))
+    assert cfg == tuned("cdst", beta=3.0, preferences=((0.9, 0.1), (0.1, 0.9)), learn_alpha=False, hidden_sizes=(64, 64))
+    assert parse().hidden_sizes == tuned("cdst").hidden_sizes  # the CLI starts from the env's tuned settings
     (tmp_path / "run.yaml").write_text("env: dst-mini\nalgo: admm\nrounds: 4\npreferences: [[0.9, 0.1], [0.1, 0.9]]\n")
     cfg = parse("--config", str(tmp_path / "run.yaml"), "--rounds", "6")
     assert (cfg.env, cfg.algo, cfg.rounds, cfg.preferences) == ("dst-mini", "admm", 6, ((0.9, 0.1), (0.1, 0.9)))
