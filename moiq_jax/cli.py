@@ -285,6 +285,46 @@ def _cmd_plot(args) -> int:
     return 0
 
 
+def _cmd_eval(args) -> int:
+    import jax
+
+    import moiq_jax
+    from moiq_jax import envs
+    from moiq_jax.algos.moiq_train import make_train
+    from moiq_jax.checkpoint import Checkpoints
+    from moiq_jax.preferences import preference_sweep
+
+    config = Config(**load_config_file(os.path.join(args.run_dir, "config.json")))
+    if config.algo != "moiq":
+        raise ValueError(f"moiq eval evaluates one preference-conditioned moiq model; this run is {config.algo!r}")
+    like = jax.jit(make_train(config).init)(jax.random.PRNGKey(config.seed)).best_params
+    checkpoints = Checkpoints(os.path.join(args.run_dir, "checkpoints"))
+    try:
+        params, meta = checkpoints.restore_best(like)
+    finally:
+        checkpoints.close()
+    experts = np.asarray(config.preferences, np.float32)
+    preferences = np.concatenate([experts, preference_sweep()]) if experts.shape[1] == 2 else experts
+    returns = moiq_jax.evaluate(params, config.env, preferences, episodes=args.episodes)
+    base = envs.make(config.env).unwrapped
+    front = base.pareto_front() if hasattr(base, "pareto_front") else None
+    optimal = [None if front is None else bool(np.dot(w, r) >= np.max(front @ w) - 1e-3)
+               for w, r in zip(preferences, returns)]
+    print(f"best parameters of {args.run_dir} (mean scalarised return {np.mean(meta['best_return']):.2f}); "
+          f"vector return per preference over {args.episodes} episode(s):")
+    for i, (w, r, ok) in enumerate(zip(preferences, returns, optimal)):
+        kind = "expert " if i < len(experts) else "sweep  "
+        tag = "" if ok is None else ("  Pareto-optimal" if ok else "  not optimal")
+        print(f"  {kind}{_format_preference(w):<14} {_format_vector(r)} {float(np.dot(w, r)):8.2f}{tag}")
+    if front is not None:
+        sweep = optimal[len(experts):]
+        print(f"transfer: {sum(sweep)} of {len(sweep)} swept preferences reach their Pareto-optimal return")
+    with open(os.path.join(args.run_dir, "transfer.json"), "w") as f:
+        json.dump({"preferences": preferences.tolist(), "returns": np.asarray(returns).tolist(),
+                   "pareto_optimal": optimal}, f, indent=1)
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="moiq", description="Multi-objective inverse RL from several experts, in JAX.")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -319,6 +359,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seeds", type=int, default=1, help="number of seeds, from --seed on; default: 1")
     p.add_argument("--out", help="sweep directory (default: runs/sweep-<env>-<algo>-<time>)")
     p.set_defaults(func=_cmd_sweep)
+
+    p = sub.add_parser("eval", help="evaluate a run's best parameters per preference (transfer)",
+                       description="Vector returns of a moiq run's best parameters at the experts' preferences and "
+                                   "the paper's 19 transfer preferences, against the true Pareto front; writes "
+                                   "RUN_DIR/transfer.json (drawn by `moiq plot`).")
+    p.add_argument("run_dir", metavar="RUN_DIR", help="a run directory of `moiq train`")
+    p.add_argument("--episodes", type=int, default=1, help="episodes per preference; default: 1 (cdst is deterministic)")
+    p.set_defaults(func=_cmd_eval)
 
     p = sub.add_parser("demos", help="record expert demonstrations to a file, or describe one",
                        description="Record demonstrations of the env's exact optimal experts (DST maps and cdst) "

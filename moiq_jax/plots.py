@@ -94,7 +94,7 @@ def transfer(returns: np.ndarray, preferences: np.ndarray, out: str, front: np.n
     ax.set_xlabel("objective 2 return")
     ax.set_ylabel("objective 1 return")
     ax.set_title(title or "preference transfer")
-    ax.legend(fontsize=8, loc="lower right")
+    ax.legend(fontsize=8, loc="upper right")
     fig.tight_layout()
     fig.savefig(out, dpi=120)
     plt.close(fig)

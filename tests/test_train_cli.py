@@ -1,5 +1,6 @@
 """`moiq train` through the real console script: kill, resume, divergence and bad input."""
 
+import json
 import os
 import shutil
 import signal
@@ -11,9 +12,9 @@ import numpy as np
 import pytest
 
 import moiq_jax
-from moiq_jax import Config
 from moiq_jax.algos.moiq_train import make_train
 from moiq_jax.checkpoint import Checkpoints
+from moiq_jax.config import tuned
 
 MOIQ = shutil.which("moiq")
 pytestmark = pytest.mark.skipif(MOIQ is None, reason="the package is not installed (pip install -e .)")
@@ -35,7 +36,7 @@ def latest_state(run_dir, config):
 
 
 def test_a_killed_run_resumes_to_the_same_result(tmp_path):
-    config = Config(**SMALL)
+    config = tuned("cdst", **SMALL)  # what the CLI builds from the flags
     reference_dir = tmp_path / "reference"
     moiq_jax.train(config, run_dir=str(reference_dir), log=None)
 
@@ -69,6 +70,17 @@ def test_a_killed_run_resumes_to_the_same_result(tmp_path):
             a, b = jax.random.key_data(a), jax.random.key_data(b)
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
 
+    # `moiq eval` restores the best parameters and evaluates the experts' and the 19 swept preferences.
+    out = subprocess.run([MOIQ, "eval", str(run_dir)], check=False, capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    transfer = json.loads((run_dir / "transfer.json").read_text())
+    preferences, returns = np.array(transfer["preferences"]), np.array(transfer["returns"])
+    assert preferences.shape == returns.shape == (3 + 19, 2)
+    front = moiq_jax.envs.make("cdst").unwrapped.pareto_front()
+    optimal = [bool(w @ r >= (front @ w).max() - 1e-3) for w, r in zip(preferences, returns)]
+    assert transfer["pareto_optimal"] == optimal
+    assert f"transfer: {sum(optimal[3:])} of 19 swept preferences" in out.stdout
+
 
 def test_divergence_stops_with_the_step_and_keeps_the_last_good_checkpoint(tmp_path):
     run_dir = tmp_path / "nan"
@@ -77,7 +89,7 @@ def test_divergence_stops_with_the_step_and_keeps_the_last_good_checkpoint(tmp_p
     assert out.returncode == 3
     assert "training diverged: non-finite" in out.stderr and "critic_loss" in out.stderr
     assert "env step 300; the last good checkpoint is at env step 0" in out.stderr
-    step, state = latest_state(run_dir, Config(**SMALL, critic_lr=1e8, actor_lr=1e8))
+    step, state = latest_state(run_dir, tuned("cdst", **SMALL, critic_lr=1e8, actor_lr=1e8))
     assert step == 0
     assert all(np.all(np.isfinite(x)) for x in jax.tree.leaves(state.learner.params))
 
