@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from moiq_jax import Demonstrations, envs
-from moiq_jax.experts import record_demonstrations
+from moiq_jax.experts import oracle_demonstrations, record_demonstrations
 
 
 @pytest.fixture(scope="module")
@@ -41,3 +41,13 @@ def test_bad_files_give_clear_errors(tmp_path, demos):
     bad = demos.replace(preferences=np.array([[0.9, 0.3], [0.1, 0.9]], np.float32))
     with pytest.raises(ValueError, match="sum to 1"):
         bad.save(tmp_path / "bad.npz")
+
+
+def test_demos_with_another_number_of_objectives_do_not_fit_the_env():
+
+    demos = oracle_demonstrations("cdst", [[0.9, 0.1], [0.1, 0.9]], num_demos=1)
+    three = demos.replace(rewards=np.concatenate([demos.rewards, np.zeros_like(demos.rewards[..., :1])], -1),
+                          preferences=np.array([[0.8, 0.1, 0.1], [0.1, 0.1, 0.8]], np.float32))
+    three.validate()  # consistent in itself
+    with pytest.raises(ValueError, match="reward_dim 3 does not match the env's 2"):
+        three.validate(envs.make("cdst", absorbing=True))
