@@ -44,7 +44,6 @@ def test_bad_files_give_clear_errors(tmp_path, demos):
 
 
 def test_demos_with_another_number_of_objectives_do_not_fit_the_env():
-
     demos = oracle_demonstrations("cdst", [[0.9, 0.1], [0.1, 0.9]], num_demos=1)
     three = demos.replace(rewards=np.concatenate([demos.rewards, np.zeros_like(demos.rewards[..., :1])], -1),
                           preferences=np.array([[0.8, 0.1, 0.1], [0.1, 0.1, 0.8]], np.float32))
