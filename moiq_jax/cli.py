@@ -142,16 +142,22 @@ def load_config_file(path: str) -> dict:
     return values
 
 
+def _saved_config(run_dir: str) -> Config:
+    """The resolved config a run directory of `moiq train` keeps in its config.json."""
+    saved = os.path.join(run_dir, "config.json")
+    if not os.path.exists(saved):
+        raise ValueError(f"{run_dir!r} is not a run directory of `moiq train` (no config.json)")
+    return Config(**load_config_file(saved))
+
+
 def _resolve_run(args) -> tuple[Config, str, bool]:
     """The config, run directory and resume flag of ``moiq train``."""
     if args.resume:
-        saved = os.path.join(args.resume, "config.json")
-        if not os.path.exists(saved):
-            raise ValueError(f"{args.resume!r} is not a run directory (no config.json); nothing to resume")
+        config = _saved_config(args.resume)
         given = [f.name for f in dataclasses.fields(Config) if getattr(args, f.name, None) is not None]
         if given or args.config:
             raise ValueError(f"--resume continues the run's saved config; drop --config and {given}")
-        return Config(**load_config_file(saved)), args.resume, True
+        return config, args.resume, True
     config = config_from_args(args)
     run_dir = args.run_dir or os.path.join("runs", f"{config.env}-{config.algo}-{time.strftime('%Y%m%d-%H%M%S')}")
     if os.path.exists(run_dir) and os.listdir(run_dir):
@@ -164,7 +170,7 @@ def _print_returns_against_experts(config: Config, result) -> None:
     from moiq_jax.algos.moiq_train import load_demonstrations
 
     demos = load_demonstrations(config)
-    expert = demos.episode_returns().mean(axis=1)
+    expert = demos.mean_returns()
     final = np.asarray(result.history["eval_return"][-1])
     best_step = int(np.argmax(np.asarray(result.history["eval_scalar_return"]).mean(axis=1)))
     best = np.asarray(result.history["eval_return"][best_step])
@@ -239,7 +245,7 @@ def _cmd_train(args) -> int:
 
 
 def _print_demos(demos) -> None:
-    returns = demos.episode_returns().mean(axis=1)
+    returns = demos.mean_returns()
     print(f"{demos.num_experts} experts x {demos.num_episodes} demonstrations of {demos.env} "
           f"(obs {demos.obs.shape[-1]}, steps {demos.obs.shape[2]}); mean return per expert (vector, scalarised):")
     for w, ret in zip(np.asarray(demos.preferences), returns):
@@ -265,12 +271,12 @@ def _cmd_plot(args) -> int:
 
     out_dir = args.out or args.run_dirs[0]
     os.makedirs(out_dir, exist_ok=True)
-    config = Config(**load_config_file(os.path.join(args.run_dirs[0], "config.json")))
+    config = _saved_config(args.run_dirs[0])
     from moiq_jax.algos.moiq_train import load_demonstrations
 
     try:
         demos = load_demonstrations(config)
-        expert = (demos.episode_returns().mean(axis=1) * np.asarray(demos.preferences)).sum(-1)
+        expert = (demos.mean_returns() * np.asarray(demos.preferences)).sum(-1)
     except ValueError:  # no oracle experts for this env and no demos file: curves without expert lines
         expert = None
     metric = args.metric or ("return" if config.algo == "admm" else "eval_scalar_return")
@@ -294,7 +300,7 @@ def _cmd_eval(args) -> int:
     from moiq_jax.checkpoint import Checkpoints
     from moiq_jax.preferences import preference_sweep
 
-    config = Config(**load_config_file(os.path.join(args.run_dir, "config.json")))
+    config = _saved_config(args.run_dir)
     if config.algo != "moiq":
         raise ValueError(f"moiq eval evaluates one preference-conditioned moiq model; this run is {config.algo!r}")
     like = jax.jit(make_train(config).init)(jax.random.PRNGKey(config.seed)).best_params

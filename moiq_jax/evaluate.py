@@ -50,6 +50,15 @@ def episode_returns(env: Env, policy: Policy, key: jax.Array, num_episodes: int)
     return run(key)
 
 
+def pearson(x: jax.Array, y: jax.Array, mask: jax.Array | None = None) -> jax.Array:
+    """Pearson correlation of ``x`` and ``y`` (over the entries where ``mask`` is True, when given): how
+    well a recovered reward matches the true one up to scale and offset."""
+    weights = jnp.ones_like(x) if mask is None else mask.astype(x.dtype)
+    weights = weights / weights.sum()
+    xc, yc = x - (weights * x).sum(), y - (weights * y).sum()
+    return (weights * xc * yc).sum() / jnp.sqrt((weights * xc**2).sum() * (weights * yc**2).sum() + 1e-12)
+
+
 def random_policy(env: Env) -> Policy:
     """Uniform random actions in the env's action space."""
     if env.discrete:

@@ -34,6 +34,7 @@ from flax import struct
 from moiq_jax import envs
 from moiq_jax.algos import tabular
 from moiq_jax.config import Config
+from moiq_jax.evaluate import pearson
 from moiq_jax.experts import dst_oracle
 from moiq_jax.experts.demonstrations import Demonstrations
 from moiq_jax.preferences import check_preferences, preference_sweep
@@ -107,13 +108,6 @@ def inner_rl(mdp: tabular.TabularMDP, config: Config) -> InnerRL:
 
         return ppo_agent(mdp, config)
     return soft_vi_agent(mdp, config)
-
-
-def pearson(x: jax.Array, y: jax.Array, mask: jax.Array) -> jax.Array:
-    """Pearson correlation of ``x`` and ``y`` over the entries where ``mask`` is True."""
-    weights = mask / mask.sum()
-    xc, yc = x - (weights * x).sum(), y - (weights * y).sum()
-    return (weights * xc * yc).sum() / jnp.sqrt((weights * xc**2).sum() * (weights * yc**2).sum() + 1e-12)
 
 
 def evaluate_policies(policies, preferences, mdp: tabular.TabularMDP):

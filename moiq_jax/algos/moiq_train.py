@@ -23,7 +23,7 @@ from moiq_jax import envs, replay
 from moiq_jax.algos import moiq
 from moiq_jax.config import Config
 from moiq_jax.envs.wrappers import AutoReset, VmapWrapper
-from moiq_jax.evaluate import preference_returns
+from moiq_jax.evaluate import pearson, preference_returns
 from moiq_jax.experts import Demonstrations, oracle_demonstrations
 from moiq_jax.networks import TanhGaussianActor, TwinVectorCritic
 from moiq_jax.runner import run_chunks
@@ -80,11 +80,6 @@ def _expert_transitions(demos: Demonstrations) -> dict:
         "obs": take(demos.obs), "action": take(demos.actions), "next_obs": take(demos.next_obs),
         "done": take(demos.dones).astype(np.float32), "true_reward": take(demos.rewards),
     }
-
-
-def _pearson(x, y):
-    x, y = x - x.mean(), y - y.mean()
-    return jnp.sum(x * y) / jnp.sqrt(jnp.sum(x**2) * jnp.sum(y**2) + 1e-12)
 
 
 def make_train(config: Config, demos: Demonstrations | None = None) -> Trainer:
@@ -168,7 +163,7 @@ def make_train(config: Config, demos: Demonstrations | None = None) -> Trainer:
 
         def correlation(data_i, preference, alpha, k):
             rewards, _ = moiq.recovered_rewards(nets, params.critic, params, alpha, data_i, preference, k, config.gamma)
-            return _pearson(jnp.mean(rewards, 0) @ preference, data_i["true_reward"] @ preference)
+            return pearson(jnp.mean(rewards, 0) @ preference, data_i["true_reward"] @ preference)
 
         corr = jax.vmap(correlation)(expert_data, prefs, alphas, jax.random.split(keys[0], prefs.shape[0]))
         return returns, corr

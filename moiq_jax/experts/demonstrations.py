@@ -62,6 +62,10 @@ class Demonstrations:
         """``[E, N, d]`` undiscounted true vector return of every episode."""
         return (np.asarray(self.rewards) * self.mask()[..., None]).sum(axis=2)
 
+    def mean_returns(self) -> np.ndarray:
+        """``[E, d]`` each expert's mean vector return over its episodes."""
+        return self.episode_returns().mean(axis=1)
+
     def validate(self, env=None) -> Demonstrations:
         """Check shapes, preferences and values; with ``env``, check they fit it. Returns self."""
         obs, actions = np.asarray(self.obs), np.asarray(self.actions)
