@@ -76,19 +76,21 @@ MUJOCO_ENVS = {
 def mujoco_report(names, batch_sizes, steps, gym_seconds) -> None:
     """Env-steps/s of the MJX envs at each batch size against MO-Gymnasium's Python loop, same run."""
     for name in names:
-        theirs = gym_steps_per_second(MUJOCO_ENVS[name], gym_seconds)
-        print(f"{name:<15} MO-Gymnasium (Python loop): {theirs:10,.0f} env-steps/s", flush=True)
+        theirs = gym_steps_per_second(MUJOCO_ENVS[name], gym_seconds) if gym_seconds > 0 else None
+        if theirs is not None:
+            print(f"{name:<15} MO-Gymnasium (Python loop): {theirs:10,.0f} env-steps/s", flush=True)
         for num_envs in batch_sizes:
             ours = jax_steps_per_second(name, num_envs, steps, repeats=1)
-            print(f"{name:<15} moiq_jax {num_envs:5d} envs:         {ours:10,.0f} env-steps/s  "
-                  f"({ours / theirs:5.2f}x MO-Gymnasium)", flush=True)
+            ratio = f"  ({ours / theirs:5.2f}x MO-Gymnasium)" if theirs is not None else ""
+            print(f"{name:<15} moiq_jax {num_envs:6d} envs:        {ours:10,.0f} env-steps/s{ratio}", flush=True)
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--num-envs", type=int, default=4096)
     parser.add_argument("--steps", type=int, default=1000)
-    parser.add_argument("--gym-seconds", type=float, default=5.0)
+    parser.add_argument("--gym-seconds", type=float, default=5.0,
+                        help="seconds of MO-Gymnasium's loop to time; 0 skips it (where it is not installed)")
     parser.add_argument("--mujoco", action="store_true", help="benchmark the MJX MuJoCo envs instead of DST")
     parser.add_argument("--mujoco-envs", nargs="+", default=list(MUJOCO_ENVS), choices=list(MUJOCO_ENVS))
     parser.add_argument("--batch-sizes", type=int, nargs="+", default=[1, 64, 1024])

@@ -10,7 +10,7 @@ import dataclasses
 
 from moiq_jax.preferences import check_preferences
 
-ALGORITHMS = ("admm", "moiq", "iq_learn")
+ALGORITHMS = ("admm", "moiq", "iq_learn", "sac")
 INNER_RL = ("soft_vi", "ppo")
 
 
@@ -18,7 +18,7 @@ INNER_RL = ("soft_vi", "ppo")
 class Config:
     # --- common ---
     env: str = "cdst"  # a registered env (see `moiq envs`)
-    algo: str = "moiq"  # moiq, iq_learn (one model per expert) or admm (discrete DST)
+    algo: str = "moiq"  # moiq, iq_learn (one model per expert), admm (discrete DST) or sac (train experts)
     preferences: tuple[tuple[float, ...], ...] = ((0.9, 0.1), (0.5, 0.5), (0.1, 0.9))  # one per expert
     num_demos: int = 10  # demonstrations per expert
     demos: str | None = None  # a Demonstrations file; None: record them from the env's oracle experts
@@ -90,7 +90,7 @@ class Config:
             raise ValueError(f"num_demos must be at least 1, got {self.num_demos}")
         if not 0.0 <= self.gamma < 1.0:
             raise ValueError(f"gamma must be in [0, 1), got {self.gamma}")
-        if self.algo in ("moiq", "iq_learn"):
+        if self.algo in ("moiq", "iq_learn", "sac"):
             self._validate_moiq()
         if self.algo == "admm":
             self._validate_admm()
@@ -146,9 +146,11 @@ class Config:
 # - use_target False (IQ-Learn's default: V(s') from the online critic, with gradient): with the target
 #   critic, evaluation returns collapsed every few thousand steps (to never reaching a treasure).
 # - eval_interval 5_000: the paper's checkpoint interval for the best model.
+# mo-hopper: the paper's three expert preferences (sec. 5.1); the other MuJoCo tasks use the default three.
 TUNED: dict[str, dict] = {
     "cdst": {"hidden_sizes": (64, 64), "batch_size": 64, "num_envs": 4, "actor_lr": 3e-4, "action_scale": 2.5,
              "learn_alpha": False, "init_alpha": 0.01, "use_target": False, "eval_interval": 5_000},
+    "mo-hopper": {"preferences": ((0.8, 0.1, 0.1), (0.1, 0.8, 0.1), (0.1, 0.1, 0.8))},
 }
 
 

@@ -30,9 +30,10 @@ def _summary(metrics: dict) -> str:
 
 
 def run_chunks(trainer, config, run_dir: str | None = None, resume: bool = False, log=print,
-               progress: bool = False, until=None):
+               progress: bool = False, until=None, on_chunk=None):
     """Run every chunk of ``trainer`` for ``config``, or with ``until`` (metrics -> bool) up to the first
-    chunk whose metrics it holds true for; returns ``(state, history list, seconds)``.
+    chunk whose metrics it holds true for; returns ``(state, history list, seconds)``. ``on_chunk(state,
+    history)`` runs after every chunk (to keep results of a run that may be cut short).
 
     With ``run_dir``: metrics go to ``run_dir`` (RunLog), the state after each chunk and the best
     parameters to ``run_dir/checkpoints``; ``resume=True`` continues from the newest checkpoint there.
@@ -80,8 +81,11 @@ def run_chunks(trainer, config, run_dir: str | None = None, resume: bool = False
                     checkpoints.save_best(step, state.best_params,
                                           {"best_return": np.asarray(state.best_return).tolist()})
             if log is not None:
-                log(f"[{config.algo} beta={config.beta}] steps {step}: {_summary(metrics)} "
+                label = f"{config.algo} beta={config.beta}" if config.algo == "moiq" else config.algo
+                log(f"[{label}] steps {step}: {_summary(metrics)} "
                     f"({time.perf_counter() - start:.0f}s)")
+            if on_chunk is not None:
+                on_chunk(state, history)
             if until is not None and until(metrics):
                 break
     finally:

@@ -11,13 +11,14 @@ _ENTRY_POINTS: dict[str, str] = {
     "admm": "moiq_jax.algos.admm",
     "moiq": "moiq_jax.algos.moiq_train",
     "iq_learn": "moiq_jax.algos.moiq_train",  # the same program with one model per expert and beta = 0
+    "sac": "moiq_jax.algos.moiq_train",  # experts: the same program on the true reward, one model per preference
 }
 
 
 def train(config: Config, **options):
     """Validate ``config`` and run its algorithm; returns that algorithm's result.
 
-    ``options`` go to the algorithm's ``train``; for moiq and iq_learn: ``run_dir`` (logs and checkpoints),
+    ``options`` go to the algorithm's ``train``; for moiq, iq_learn and sac: ``run_dir`` (logs and checkpoints),
     ``resume``, ``progress`` (a progress bar) and ``log`` (a print function, or None)."""
     config.validate()
     if config.algo not in _ENTRY_POINTS:
@@ -29,8 +30,8 @@ def sweep(config: Config, **values):
     """Train every combination of the given values (``beta=[...]``, ``seed=[...]``) as one vmapped
     program; see ``moiq_jax.algos.moiq_train.sweep``."""
     config.validate()
-    if config.algo not in ("moiq", "iq_learn"):
-        raise NotImplementedError(f"sweep is available for moiq and iq_learn, not {config.algo!r}")
+    if config.algo == "admm":
+        raise NotImplementedError("sweep is available for moiq, iq_learn and sac, not admm")
     unknown = set(values) - {"beta", "seed"}
     if unknown:
         raise ValueError(f"sweep varies beta and seed only, got {sorted(unknown)}")

@@ -72,8 +72,12 @@ def networks_for(params: Params) -> Networks:
     """The networks ``params`` belong to, read from their shapes: hidden sizes, action and reward sizes."""
     actor_layers, critic_layers = _layer_sizes(params.actor), _layer_sizes(params.critic)
     hidden = tuple(out for _, out in actor_layers[:-1])
-    return Networks(TwinVectorCritic(hidden, critic_layers[-1][1]), TanhGaussianActor(hidden, actor_layers[-1][1] // 2),
-                    params.action_scale)
+    return networks_of_sizes(hidden, critic_layers[-1][1], actor_layers[-1][1] // 2, params.action_scale)
+
+
+def networks_of_sizes(hidden_sizes, reward_dim: int, action_size: int, action_scale: float = 1.0) -> Networks:
+    """Fresh critic and actor modules of the given layer widths for an env's reward and action sizes."""
+    return Networks(TwinVectorCritic(hidden_sizes, reward_dim), TanhGaussianActor(hidden_sizes, action_size), action_scale)
 
 
 def observation_size(params: Params) -> int:
@@ -236,11 +240,12 @@ def init_learner(nets: Networks, optimisers: Optimisers, key, obs_size, action_s
 
 
 def update(learner: Learner, nets: Networks, optimisers: Optimisers, batches, preferences, beta, key,
-           hyper: Hyper, tau: float, learn_alpha: bool):
-    """One MOIQ step for all experts: critic (eq. 9), actor (eq. 10), temperature, then Polyak targets."""
+           hyper: Hyper, tau: float, learn_alpha: bool, critic_objective=critic_loss):
+    """One step for all experts: critic (``critic_objective``: MOIQ's eq. 9, or ``sac.critic_loss`` for
+    the experts), actor (eq. 10), temperature, then Polyak targets."""
     critic_key, actor_key = jax.random.split(key)
     params = learner.params
-    (loss_q, metrics), grads = jax.value_and_grad(critic_loss, has_aux=True)(
+    (loss_q, metrics), grads = jax.value_and_grad(critic_objective, has_aux=True)(
         params.critic, nets, params, batches, preferences, beta, critic_key, hyper
     )
     updates, critic_opt = optimisers.critic.update(grads, learner.critic_opt, params.critic)

@@ -4,7 +4,9 @@ chunk of ``eval_interval`` env steps, all in ``lax.scan``. ``train(config)`` dri
 the host (logging between them); ``sweep`` vmaps the whole of ``train(key, beta)`` over a grid.
 
 The "iq_learn" baseline is the same program with one expert per model and beta = 0, vmapped over the
-experts: n separate models, each with its own networks, buffer and envs.
+experts: n separate models, each with its own networks, buffer and envs. "sac" trains the experts
+themselves the same way, one model per preference, on the env's true reward (``algos.sac``) instead of
+from demonstrations.
 """
 
 from __future__ import annotations
@@ -20,12 +22,12 @@ import optax
 from flax import struct
 
 from moiq_jax import envs, replay
-from moiq_jax.algos import moiq
+from moiq_jax.algos import moiq, sac
 from moiq_jax.config import Config
 from moiq_jax.envs.wrappers import AutoReset, VmapWrapper
 from moiq_jax.evaluate import pearson, preference_returns
 from moiq_jax.experts import Demonstrations, oracle_demonstrations
-from moiq_jax.networks import TanhGaussianActor, TwinVectorCritic
+from moiq_jax.preferences import check_preferences
 from moiq_jax.runner import run_chunks
 
 
@@ -82,18 +84,27 @@ def _expert_transitions(demos: Demonstrations) -> dict:
     }
 
 
-def make_train(config: Config, demos: Demonstrations | None = None) -> Trainer:
-    """Build the pure training functions for ``config`` (``algo`` "moiq" or "iq_learn")."""
-    config.validate()
-    demos = load_demonstrations(config) if demos is None else demos
-    data = jax.tree_util.tree_map(jnp.asarray, _expert_transitions(demos))
-    preferences = jnp.asarray(demos.preferences)
-    separate = config.algo == "iq_learn"
+TRANSITION_FIELDS = ("obs", "action", "next_obs", "done")  # what the inverse-RL losses see of a transition
 
-    env = envs.make(config.env, absorbing=True)
+
+def make_train(config: Config, demos: Demonstrations | None = None) -> Trainer:
+    """Build the pure training functions for ``config`` (``algo`` "moiq", "iq_learn" or "sac")."""
+    config.validate()
+    experts = config.algo == "sac"  # training experts: the true reward, no demonstrations
+    separate = config.algo in ("iq_learn", "sac")
+    if experts:
+        # Experts learn the task itself: termination ends the episode (no absorbing state to imitate).
+        env = envs.make(config.env)
+        data = None
+        preferences = jnp.asarray(check_preferences(config.preferences, env.reward_dim))
+    else:
+        demos = load_demonstrations(config) if demos is None else demos
+        data = jax.tree_util.tree_map(jnp.asarray, _expert_transitions(demos))
+        preferences = jnp.asarray(demos.preferences)
+        env = envs.make(config.env, absorbing=True)
+    critic_objective = sac.critic_loss if experts else moiq.critic_loss
     rollout_env = VmapWrapper(AutoReset(env), config.num_envs)
-    nets = moiq.Networks(TwinVectorCritic(config.hidden_sizes, env.reward_dim),
-                         TanhGaussianActor(config.hidden_sizes, env.action_size), config.action_scale)
+    nets = moiq.networks_of_sizes(config.hidden_sizes, env.reward_dim, env.action_size, config.action_scale)
     optimisers = moiq.Optimisers(optax.adam(config.critic_lr), optax.adam(config.actor_lr), optax.adam(config.alpha_lr))
     hyper = moiq.Hyper(config.gamma, config.alpha_reg, -float(env.action_size), config.use_target)
     iterations_per_chunk = config.eval_interval // config.num_envs
@@ -105,21 +116,26 @@ def make_train(config: Config, demos: Demonstrations | None = None) -> Trainer:
         learner = moiq.init_learner(nets, optimisers, learner_key, env.observation_size, env.action_size,
                                     prefs, config.init_alpha)
         example = {"obs": jnp.zeros(env.observation_size), "action": jnp.zeros(env.action_size),
-                   "next_obs": jnp.zeros(env.observation_size), "done": jnp.zeros(())}
+                   "next_obs": jnp.zeros(env.observation_size), "done": jnp.zeros(()),
+                   "reward": jnp.zeros(env.reward_dim)}
         buffers = jax.vmap(lambda _: replay.init(example, config.buffer_size))(jnp.arange(num_experts))
         env_state = jax.vmap(rollout_env.reset)(jax.random.split(env_key, num_experts))
         return RunnerState(learner, buffers, env_state, key, jnp.zeros((), jnp.int32),
                            learner.params, jnp.full((), -jnp.inf))
 
     def sample_batches(buffers, expert_data, key):
-        num_experts = expert_data["obs"].shape[0]
+        """Per expert: its replay batch alone when training experts; else expert rows, then policy rows."""
+        num_experts = buffers.size.shape[0]
         policy_key, expert_key = jax.random.split(key)
         policy = jax.vmap(replay.sample, in_axes=(0, 0, None))(
             buffers, jax.random.split(policy_key, num_experts), config.batch_size)
+        if expert_data is None:
+            return policy
+        policy = {k: policy[k] for k in TRANSITION_FIELDS}
         rows = jax.random.randint(expert_key, (num_experts, config.batch_size), 0, expert_data["obs"].shape[1])
         expert = jax.tree_util.tree_map(
             lambda x: jnp.take_along_axis(x, rows.reshape(*rows.shape, *([1] * (x.ndim - 2))), axis=1),
-            {k: expert_data[k] for k in policy})
+            {k: expert_data[k] for k in TRANSITION_FIELDS})
         batches = jax.tree_util.tree_map(lambda e, p: jnp.concatenate([e, p], axis=1), expert, policy)
         is_expert = jnp.arange(2 * config.batch_size) < config.batch_size
         return {**batches, "is_expert": jnp.broadcast_to(is_expert, (num_experts, 2 * config.batch_size))}
@@ -134,7 +150,7 @@ def make_train(config: Config, demos: Demonstrations | None = None) -> Trainer:
         action = jnp.where(state.env_steps < config.learning_starts, random, learned)
         nxt = jax.vmap(rollout_env.step)(state.env_state, action)
         transitions = {"obs": obs, "action": action, "next_obs": nxt.info["final_obs"],
-                       "done": nxt.done.astype(jnp.float32)}
+                       "done": nxt.done.astype(jnp.float32), "reward": nxt.reward}
         buffers = jax.vmap(replay.add)(state.buffers, transitions)
 
         def learn(learner):
@@ -142,7 +158,7 @@ def make_train(config: Config, demos: Demonstrations | None = None) -> Trainer:
                 batch_key, step_key = jax.random.split(k)
                 batches = sample_batches(buffers, expert_data, batch_key)
                 return moiq.update(learner, nets, optimisers, batches, prefs, beta, step_key, hyper,
-                                   config.tau, config.learn_alpha)
+                                   config.tau, config.learn_alpha, critic_objective)
 
             learner, metrics = jax.lax.scan(one_update, learner, jax.random.split(update_key, config.updates_per_step))
             return learner, jax.tree_util.tree_map(lambda m: m[-1], metrics)
@@ -156,9 +172,12 @@ def make_train(config: Config, demos: Demonstrations | None = None) -> Trainer:
                              env_steps=state.env_steps + config.num_envs), metrics
 
     def evaluate_params(params, prefs, expert_data, key):
-        """Deterministic-policy vector returns per preference and the recovered-reward correlation."""
+        """Deterministic-policy vector returns per preference and the recovered-reward correlation
+        (None when training experts, which recover no reward)."""
         keys = jax.random.split(key)
         returns = preference_returns(nets, params.actor, env, prefs, keys[1], config.eval_episodes).mean(axis=1)
+        if expert_data is None:
+            return returns, None
         alphas = jnp.exp(params.log_alpha)
 
         def correlation(data_i, preference, alpha, k):
@@ -181,12 +200,13 @@ def make_train(config: Config, demos: Demonstrations | None = None) -> Trainer:
         best = jax.tree_util.tree_map(lambda new, old: jnp.where(better, new, old),
                                       state.learner.params, state.best_params)
         state = state.replace(key=key, best_params=best, best_return=jnp.maximum(score, state.best_return))
-        metrics = {**metrics, "eval_return": returns, "eval_scalar_return": scalar, "reward_correlation": corr,
-                   "env_steps": state.env_steps}
+        metrics = {**metrics, "eval_return": returns, "eval_scalar_return": scalar, "env_steps": state.env_steps}
+        if corr is not None:
+            metrics["reward_correlation"] = corr
         return state, metrics
 
     if separate:  # n single-expert models, vmapped; beta is irrelevant (no neighbours) and set to 0
-        per_model = jax.tree_util.tree_map(lambda x: x[:, None], data)
+        per_model = None if data is None else jax.tree_util.tree_map(lambda x: x[:, None], data)
         model_prefs = preferences[:, None]
         num_models = preferences.shape[0]
 
@@ -229,13 +249,14 @@ class TrainResult:
 
 
 def train(config: Config, demos: Demonstrations | None = None, log=print, run_dir: str | None = None,
-          resume: bool = False, progress: bool = False, until=None) -> TrainResult:
+          resume: bool = False, progress: bool = False, until=None, on_chunk=None) -> TrainResult:
     """Run Algorithm 1 for ``config``: jitted chunks of ``eval_interval`` env steps, logged in between;
     with ``run_dir``, also checkpointed after every chunk and resumable (see ``moiq_jax.runner``); with
-    ``until``, stopped after the first evaluation whose metrics (a dict of arrays) it holds true for."""
+    ``until``, stopped after the first evaluation whose metrics (a dict of arrays) it holds true for;
+    ``on_chunk(state, history)`` is called after every evaluation."""
     trainer = make_train(config, demos)
     state, history, seconds = run_chunks(trainer, config, run_dir=run_dir, resume=resume, log=log, progress=progress,
-                                         until=until)
+                                         until=until, on_chunk=on_chunk)
     stacked = {k: np.stack([h[k] for h in history]) for k in history[0]}
     return TrainResult(config, state.learner.params, state.best_params, np.asarray(state.best_return), stacked, seconds)
 
