@@ -45,7 +45,7 @@ def train(args, out: pathlib.Path) -> None:
         record = {"env": args.env, "device": f"{device.platform} ({device.device_kind})",
                   "seconds": round(time.perf_counter() - start, 1), "env_steps_per_expert": steps,
                   "config": dataclasses.asdict(config),
-                  "history": {k: [np.asarray(h[k]).round(3).tolist() for h in history]
+                  "history": {k: [np.asarray(h[k], np.float64).round(3).tolist() for h in history]
                               for k in ("env_steps", "eval_scalar_return", "eval_return", "alpha")}}
         (out / f"{args.env}-training.json").write_text(json.dumps(record, indent=1))
         print(f"  saved the best experts after {steps:,} env steps each ({record['seconds']:.0f}s)", flush=True)
@@ -61,7 +61,7 @@ def record(args, out: pathlib.Path) -> None:
     training = out / f"{args.env}-training.json"
     summary = json.loads(training.read_text()) if training.exists() else {}
     preferences = np.asarray(config.preferences)
-    returns = demos.mean_returns()
+    returns = demos.mean_returns().astype(np.float64)
     paper = sac.PAPER_EXPERT_RETURNS[args.env]
     summary["experts"] = [
         {"preference": w.tolist(), "vector_return": r.round(1).tolist(), "scalar_return": round(float(w @ r), 1),

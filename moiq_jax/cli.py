@@ -169,8 +169,10 @@ def _resolve_run(args) -> tuple[Config, str, bool]:
 def _print_returns_against_experts(config: Config, result) -> None:
     from moiq_jax.algos.moiq_train import load_demonstrations
 
-    demos = load_demonstrations(config)
-    expert = demos.mean_returns()
+    try:
+        expert = load_demonstrations(config).mean_returns()
+    except ValueError:  # SAC experts of an env without oracle experts: nothing to compare with
+        expert = [None] * len(config.preferences)
     final = np.asarray(result.history["eval_return"][-1])
     best_step = int(np.argmax(np.asarray(result.history["eval_scalar_return"]).mean(axis=1)))
     best = np.asarray(result.history["eval_return"][best_step])
@@ -178,7 +180,7 @@ def _print_returns_against_experts(config: Config, result) -> None:
           f"{len(result.history['eval_return'])}")
     print(f"  {'preference':<12} {'expert':<26} {'final':<26} {'best':<26}")
     for w, e, f, b in zip(np.asarray(config.preferences), expert, final, best):
-        cells = [f"{_format_vector(v)} {float(np.dot(w, v)):7.2f}" for v in (e, f, b)]
+        cells = ["-" if v is None else f"{_format_vector(v)} {float(np.dot(w, v)):7.2f}" for v in (e, f, b)]
         print(f"  {_format_preference(w):<12} " + " ".join(f"{c:<26}" for c in cells))
 
 
@@ -241,6 +243,12 @@ def _cmd_train(args) -> int:
     print(f"run directory: {run_dir}")
     result = moiq_jax.train(config, run_dir=run_dir, resume=resume, progress=not args.no_progress, log=None)
     _print_returns_against_experts(config, result)
+    if config.algo == "sac":
+        from moiq_jax.experts import sac
+
+        experts = os.path.join(run_dir, "experts.npz")
+        sac.save_experts(experts, config, result.best_params.actor)
+        print(f"best experts written to {experts}; record demonstrations with `moiq demos --experts {experts}`")
     return 0
 
 
@@ -258,8 +266,14 @@ def _cmd_demos(args) -> int:
     if args.info:
         _print_demos(Demonstrations.load(args.info))
         return 0
-    preferences = args.preferences or Config().preferences
-    demos = oracle_demonstrations(args.env, preferences, args.num_demos, args.seed)
+    if args.experts:
+        from moiq_jax.experts import sac
+
+        config, actor = sac.load_experts(args.experts)
+        demos = sac.record_demonstrations(config, actor, args.num_demos, args.seed)
+    else:
+        preferences = args.preferences or Config().preferences
+        demos = oracle_demonstrations(args.env, preferences, args.num_demos, args.seed)
     demos.save(args.out)
     _print_demos(demos)
     print(f"written to {args.out}")
@@ -347,8 +361,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_cmd_rollout)
 
     p = sub.add_parser("train", help="train an algorithm; every Config field is a flag",
-                       description="Train (moiq, iq_learn or admm) and print each preference's return against "
-                                   "its expert's. Metrics, config and checkpoints go to the run directory.")
+                       description="Train (moiq, iq_learn, admm, or sac experts) and print each preference's return "
+                                   "against its expert's. Metrics, config and checkpoints go to the run directory.")
     add_config_flags(p)
     p.add_argument("--run-dir", help="where logs and checkpoints go (default: runs/<env>-<algo>-<time>)")
     p.add_argument("--resume", metavar="RUN_DIR", help="continue a stopped run from its last checkpoint")
@@ -375,8 +389,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_cmd_eval)
 
     p = sub.add_parser("demos", help="record expert demonstrations to a file, or describe one",
-                       description="Record demonstrations of the env's exact optimal experts (DST maps and cdst) "
-                                   "in the Demonstrations format, printing each expert's return.")
+                       description="Record demonstrations of the env's exact optimal experts (DST maps and cdst), "
+                                   "or of trained SAC experts (--experts), in the Demonstrations format, printing "
+                                   "each expert's return.")
     p.add_argument("--env", default="cdst", help="registered env name; default: cdst")
     p.add_argument("--preferences", nargs="+", type=_parse_vector, metavar="W1,W2",
                    help="one comma-separated preference per expert (default: 0.9,0.1 0.5,0.5 0.1,0.9)")
@@ -384,6 +399,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0, help="random seed (stochastic experts); default: 0")
     p.add_argument("--out", default="demos.npz", help="file to write; default: demos.npz")
     p.add_argument("--info", metavar="FILE", help="describe an existing demos file instead")
+    p.add_argument("--experts", metavar="FILE",
+                   help="record the SAC experts of FILE (env and preferences from it), e.g. "
+                        "experiments/demos/mo-hopper-experts.npz written by experiments/train_experts.py")
     p.set_defaults(func=_cmd_demos)
 
     p = sub.add_parser("plot", help="learning curves and transfer plots of runs",

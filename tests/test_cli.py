@@ -146,3 +146,22 @@ def test_train_admm_reaches_the_optimum_and_logs_every_round(tmp_path):
     assert metrics.step_name == "round"
     np.testing.assert_array_equal(metrics.steps, np.arange(1, 11))
     np.testing.assert_allclose(metrics.values["return"][-1], [14.12, -0.8], atol=1e-4)
+
+
+def test_train_sac_experts_then_record_their_demonstrations(tmp_path):
+    from moiq_jax.experts import Demonstrations
+
+    run_dir = tmp_path / "experts"
+    out = moiq("train", "--algo", "sac", "--total-steps", "800", "--eval-interval", "400", "--learning-starts", "200",
+               "--buffer-size", "800", "--hidden-sizes", "8", "8", "--batch-size", "8", "--run-dir", str(run_dir),
+               "--no-progress")
+    assert out.returncode == 0, out.stderr
+    assert "[0.1, 0.9]" in out.stdout and f"moiq demos --experts {run_dir / 'experts.npz'}" in out.stdout
+    demos = moiq("demos", "--experts", str(run_dir / "experts.npz"), "--num-demos", "2", "--out", str(tmp_path / "d.npz"))
+    assert demos.returncode == 0, demos.stderr
+    recorded = Demonstrations.load(tmp_path / "d.npz")
+    assert recorded.env == "cdst" and recorded.obs.shape[:3] == (3, 2, 100)
+    for w, ret in zip(recorded.preferences, recorded.mean_returns()):  # the printed returns are the file's
+        assert f"{float(np.dot(w, ret)):8.2f}" in demos.stdout
+    missing = moiq("demos", "--experts", str(tmp_path / "none.npz"))
+    assert missing.returncode == 2 and "does not exist" in missing.stderr
