@@ -4,6 +4,7 @@ import jax
 
 from moiq_jax.experts.demonstrations import Demonstrations
 from moiq_jax.experts.dst_oracle import optimal_treasure, oracle_policy, record_demonstrations
+from moiq_jax.experts.iq_learn_format import load_iq_learn, save_iq_learn
 
 
 def oracle_demonstrations(env_name: str, preferences, num_demos: int, seed: int = 0) -> Demonstrations:
@@ -22,4 +23,12 @@ def oracle_demonstrations(env_name: str, preferences, num_demos: int, seed: int 
                      f"pass the file with --demos")
 
 
-__all__ = ["Demonstrations", "optimal_treasure", "oracle_demonstrations", "oracle_policy", "record_demonstrations"]
+__all__ = [
+    "Demonstrations",
+    "load_iq_learn",
+    "optimal_treasure",
+    "oracle_demonstrations",
+    "oracle_policy",
+    "record_demonstrations",
+    "save_iq_learn",
+]
