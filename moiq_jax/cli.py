@@ -271,6 +271,12 @@ def _cmd_demos(args) -> int:
 
         config, actor = sac.load_experts(args.experts)
         demos = sac.record_demonstrations(config, actor, args.num_demos, args.seed)
+    elif args.import_iq_learn:
+        from moiq_jax.experts import load_iq_learn
+
+        if not args.preferences:
+            raise ValueError("--import-iq-learn needs --preferences: one per file, in the same order")
+        demos = load_iq_learn(args.import_iq_learn, args.preferences, args.env)
     else:
         preferences = args.preferences or Config().preferences
         demos = oracle_demonstrations(args.env, preferences, args.num_demos, args.seed)
@@ -390,8 +396,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("demos", help="record expert demonstrations to a file, or describe one",
                        description="Record demonstrations of the env's exact optimal experts (DST maps and cdst), "
-                                   "or of trained SAC experts (--experts), in the Demonstrations format, printing "
-                                   "each expert's return.")
+                                   "or of trained SAC experts (--experts), or convert IQ-Learn pickles "
+                                   "(--import-iq-learn), in the Demonstrations format, printing each expert's return.")
     p.add_argument("--env", default="cdst", help="registered env name; default: cdst")
     p.add_argument("--preferences", nargs="+", type=_parse_vector, metavar="W1,W2",
                    help="one comma-separated preference per expert (default: 0.9,0.1 0.5,0.5 0.1,0.9)")
@@ -402,6 +408,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--experts", metavar="FILE",
                    help="record the SAC experts of FILE (env and preferences from it), e.g. "
                         "experiments/demos/mo-hopper-experts.npz written by experiments/train_experts.py")
+    p.add_argument("--import-iq-learn", nargs="+", metavar="PKL",
+                   help="convert IQ-Learn expert pickles (one per --preferences entry, same order) for --env, "
+                        "with the absorbing state MOIQ trains in")
     p.set_defaults(func=_cmd_demos)
 
     p = sub.add_parser("plot", help="learning curves and transfer plots of runs",

@@ -165,3 +165,21 @@ def test_train_sac_experts_then_record_their_demonstrations(tmp_path):
         assert f"{float(np.dot(w, ret)):8.2f}" in demos.stdout
     missing = moiq("demos", "--experts", str(tmp_path / "none.npz"))
     assert missing.returncode == 2 and "does not exist" in missing.stderr
+
+
+def test_demos_imports_iq_learn_pickles(tmp_path):
+    from moiq_jax.experts import Demonstrations, oracle_demonstrations, save_iq_learn
+
+    source = oracle_demonstrations("cdst", [(0.9, 0.1), (0.1, 0.9)], num_demos=2)
+    files = [str(tmp_path / f"expert{e}.pkl") for e in range(2)]
+    for e, path in enumerate(files):
+        save_iq_learn(source, e, path)
+    out = moiq("demos", "--env", "cdst", "--import-iq-learn", *files, "--preferences", "0.9,0.1", "0.1,0.9",
+               "--out", str(tmp_path / "d.npz"))
+    assert out.returncode == 0, out.stderr
+    imported = Demonstrations.load(tmp_path / "d.npz")
+    scalar = lambda d: (d.mean_returns() * np.asarray(d.preferences)).sum(-1)
+    np.testing.assert_allclose(scalar(imported), scalar(source), atol=1e-4)
+    assert "19.03" in out.stdout and "-0.83" in out.stdout
+    no_prefs = moiq("demos", "--env", "cdst", "--import-iq-learn", *files)
+    assert no_prefs.returncode == 2 and "needs --preferences" in no_prefs.stderr
