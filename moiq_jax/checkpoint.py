@@ -10,11 +10,23 @@ from __future__ import annotations
 import os
 
 import jax
+import numpy as np
 import orbax.checkpoint as ocp
 
 
 def _abstract(tree):
-    return jax.tree.map(ocp.utils.to_shape_dtype_struct, tree)
+    return jax.tree.map(ocp.utils.to_shape_dtype_struct, _without_empty(tree))
+
+
+def _without_empty(tree):
+    """``tree`` with its zero-size arrays (such as MJX's ``act`` of a model without activations) as None:
+    orbax cannot save them, and they hold nothing."""
+    return jax.tree.map(lambda x: None if np.size(x) == 0 else x, tree)
+
+
+def _with_empty(like, restored):
+    """``restored`` with the zero-size arrays of ``like`` put back."""
+    return jax.tree.map(lambda x, r: x if np.size(x) == 0 else r, like, restored, is_leaf=lambda x: x is None)
 
 
 class Checkpoints:
@@ -32,11 +44,13 @@ class Checkpoints:
 
     def save(self, step: int, state, meta: dict) -> None:
         """Save the training state after ``step`` env steps, with JSON-serialisable ``meta``."""
-        self.latest.save(step, args=ocp.args.Composite(state=ocp.args.StandardSave(state), meta=ocp.args.JsonSave(meta)))
+        self.latest.save(step, args=ocp.args.Composite(state=ocp.args.StandardSave(_without_empty(state)),
+                                                       meta=ocp.args.JsonSave(meta)))
         self.latest.wait_until_finished()
 
     def save_best(self, step: int, params, meta: dict) -> None:
-        self.best.save(step, args=ocp.args.Composite(params=ocp.args.StandardSave(params), meta=ocp.args.JsonSave(meta)))
+        self.best.save(step, args=ocp.args.Composite(params=ocp.args.StandardSave(_without_empty(params)),
+                                                     meta=ocp.args.JsonSave(meta)))
         self.best.wait_until_finished()
 
     def latest_step(self) -> int | None:
@@ -50,7 +64,7 @@ class Checkpoints:
         out = self.latest.restore(
             step, args=ocp.args.Composite(state=ocp.args.StandardRestore(_abstract(like_state)), meta=ocp.args.JsonRestore())
         )
-        return out.state, out.meta
+        return _with_empty(like_state, out.state), out.meta
 
     def restore_best(self, like_params):
         """``(params, meta)`` of the best evaluation, shaped like ``like_params``."""
@@ -60,7 +74,7 @@ class Checkpoints:
         out = self.best.restore(
             step, args=ocp.args.Composite(params=ocp.args.StandardRestore(_abstract(like_params)), meta=ocp.args.JsonRestore())
         )
-        return out.params, out.meta
+        return _with_empty(like_params, out.params), out.meta
 
     def close(self) -> None:
         self.latest.close()

@@ -36,6 +36,18 @@ def test_checkpoints_round_trip_state_and_keep_the_newest(tmp_path):
     checkpoints.close()
 
 
+def test_checkpoints_keep_zero_size_arrays(tmp_path):
+    """MJX states hold empty arrays (``act`` of a model without activations), which orbax cannot write."""
+    checkpoints = Checkpoints(tmp_path / "ckpt")
+    state = {"act": jnp.zeros((4, 0)), "qpos": jnp.arange(3.0), "nested": {"empty": jnp.zeros((0,), jnp.int32)}}
+    checkpoints.save(5, state, {"chunk": 1})
+    checkpoints.save_best(5, state, {})
+    for restored, _ in (checkpoints.restore(state), checkpoints.restore_best(state)):
+        assert restored["act"].shape == (4, 0) and restored["nested"]["empty"].dtype == jnp.int32
+        np.testing.assert_array_equal(restored["qpos"], state["qpos"])
+    checkpoints.close()
+
+
 def test_restore_without_checkpoint_is_a_clear_error(tmp_path):
     with pytest.raises(FileNotFoundError, match="no checkpoint to resume"):
         Checkpoints(tmp_path / "empty").restore({"w": jnp.zeros(2)})
