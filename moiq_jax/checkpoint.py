@@ -35,12 +35,12 @@ class Checkpoints:
 
     def __init__(self, directory: str | os.PathLike, keep: int = 2):
         directory = os.path.abspath(os.fspath(directory))
-        self.latest = ocp.CheckpointManager(
-            os.path.join(directory, "latest"), options=ocp.CheckpointManagerOptions(max_to_keep=keep, create=True)
-        )
-        self.best = ocp.CheckpointManager(
-            os.path.join(directory, "best"), options=ocp.CheckpointManagerOptions(max_to_keep=1, create=True)
-        )
+        # Synchronous saves: every save is waited for anyway, and orbax's background threads of an async save
+        # time out (printing errors) when a long compile holds the process between two saves.
+        self.latest = ocp.CheckpointManager(os.path.join(directory, "latest"), options=ocp.CheckpointManagerOptions(
+            max_to_keep=keep, create=True, enable_async_checkpointing=False))
+        self.best = ocp.CheckpointManager(os.path.join(directory, "best"), options=ocp.CheckpointManagerOptions(
+            max_to_keep=1, create=True, enable_async_checkpointing=False))
 
     def save(self, step: int, state, meta: dict) -> None:
         """Save the training state after ``step`` env steps, with JSON-serialisable ``meta``."""

@@ -59,6 +59,21 @@ def pearson(x: jax.Array, y: jax.Array, mask: jax.Array | None = None) -> jax.Ar
     return (weights * xc * yc).sum() / jnp.sqrt((weights * xc**2).sum() * (weights * yc**2).sum() + 1e-12)
 
 
+def hypervolume(points, reference) -> float:
+    """The area dominated by ``points`` (two objectives, both maximised) above ``reference``: how much of
+    the return space a set of policies' vector returns covers. Points not above the reference add nothing."""
+    points, reference = np.asarray(points, np.float64), np.asarray(reference, np.float64)
+    if points.ndim != 2 or points.shape[1] != 2 or reference.shape != (2,):
+        raise ValueError(f"hypervolume takes [n, 2] points and a 2-vector reference, got {points.shape}, {reference.shape}")
+    points = points[np.all(points > reference, axis=1)]
+    area, covered = 0.0, reference[1]
+    for x, y in points[np.argsort(-points[:, 0])]:  # best first objective first: a staircase of rectangles
+        if y > covered:
+            area += (x - reference[0]) * (y - covered)
+            covered = y
+    return float(area)
+
+
 def random_policy(env: Env) -> Policy:
     """Uniform random actions in the env's action space."""
     if env.discrete:
