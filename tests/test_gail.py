@@ -57,8 +57,7 @@ def test_validate_rejects_a_non_positive_discriminator_learning_rate():
 
 @pytest.fixture(scope="module")
 def cdst_gail(tmp_path_factory):
-    config = tuned("cdst", algo="gail", total_steps=10_000, eval_interval=2_500, learning_starts=1_000,
-                   init_alpha=0.1, learn_alpha=True, use_target=True)
+    config = tuned("cdst", algo="gail", total_steps=10_000, eval_interval=2_500, init_alpha=0.1, learn_alpha=True)
     run_dir = tmp_path_factory.mktemp("gail")
     states = []
     result = moiq_jax.train(config, log=None, run_dir=str(run_dir), on_chunk=lambda state, _: states.append(state))
