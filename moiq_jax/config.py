@@ -10,7 +10,7 @@ import dataclasses
 
 from moiq_jax.preferences import check_preferences
 
-ALGORITHMS = ("admm", "moiq", "iq_learn", "sac")
+ALGORITHMS = ("admm", "moiq", "iq_learn", "sac", "gail")
 INNER_RL = ("soft_vi", "ppo")
 
 
@@ -18,14 +18,14 @@ INNER_RL = ("soft_vi", "ppo")
 class Config:
     # --- common ---
     env: str = "cdst"  # a registered env (see `moiq envs`)
-    algo: str = "moiq"  # moiq, iq_learn (one model per expert), admm (discrete DST) or sac (train experts)
+    algo: str = "moiq"  # moiq, iq_learn or gail (one model per expert), admm (discrete DST), sac (train experts)
     preferences: tuple[tuple[float, ...], ...] = ((0.9, 0.1), (0.5, 0.5), (0.1, 0.9))  # one per expert
     num_demos: int = 10  # demonstrations per expert
     demos: str | None = None  # a Demonstrations file; None: record them from the env's oracle experts
     seed: int = 0  # random seed of the whole run
     gamma: float = 0.99  # discount factor
 
-    # --- moiq --- (also its baselines: "iq_learn" trains one model per expert with beta = 0)
+    # --- moiq --- (also its baselines "iq_learn" and "gail", and "sac": one model per expert, beta unused)
     beta: float = 5.0  # consensus penalty weight; 0 is the paper's ablation
     total_steps: int = 100_000  # env steps per expert
     num_envs: int = 1  # parallel envs per expert
@@ -45,6 +45,9 @@ class Config:
     alpha_reg: float = 0.5  # IQ-Learn's chi^2 regulariser: phi(x) = x - x^2 / (4 alpha_reg)
     eval_interval: int = 5_000  # env steps per expert between evaluations (and best-model checks)
     eval_episodes: int = 1  # cdst and its experts are deterministic: one episode measures the return
+
+    # --- gail --- (its generator is SAC with the moiq fields above; the discriminator has hidden_sizes)
+    disc_lr: float = 3e-4  # Adam learning rate of the gail discriminator
 
     # --- admm ---  (discrete MOIRL with consensus ADMM, paper sec. 4.1; use gamma=0.999 on DST so the
     # discounted optimum agrees with the undiscounted front for every preference)
@@ -90,7 +93,7 @@ class Config:
             raise ValueError(f"num_demos must be at least 1, got {self.num_demos}")
         if not 0.0 <= self.gamma < 1.0:
             raise ValueError(f"gamma must be in [0, 1), got {self.gamma}")
-        if self.algo in ("moiq", "iq_learn", "sac"):
+        if self.algo in ("moiq", "iq_learn", "sac", "gail"):
             self._validate_moiq()
         if self.algo == "admm":
             self._validate_admm()
@@ -102,7 +105,8 @@ class Config:
         if self.beta < 0:
             raise ValueError(f"beta must be non-negative, got {self.beta}")
         positive = ("total_steps", "num_envs", "updates_per_step", "batch_size", "buffer_size", "eval_interval",
-                    "eval_episodes", "critic_lr", "actor_lr", "alpha_lr", "init_alpha", "alpha_reg", "action_scale")
+                    "eval_episodes", "critic_lr", "actor_lr", "alpha_lr", "init_alpha", "alpha_reg", "action_scale",
+                    "disc_lr")
         for name in positive:
             if not getattr(self, name) > 0:
                 raise ValueError(f"{name} must be positive, got {getattr(self, name)}")

@@ -102,7 +102,7 @@ def moiq(*args):
     "args, message",
     [
         (["--env", "hopper"], "unknown env 'hopper'; known envs:"),
-        (["--algo", "gail"], "unknown algo 'gail'"),
+        (["--algo", "airl"], "unknown algo 'airl'"),
         (["--preferences", "0.9,0.1,0.0"], "each preference needs 2 weights"),
         (["--preferences", "0.9,0.2"], "must sum to 1"),
         (["--preferences", "1.5,-0.5"], "non-negative"),

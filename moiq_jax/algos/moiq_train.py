@@ -6,7 +6,9 @@ the host (logging between them); ``sweep`` vmaps the whole of ``train(key, beta)
 The "iq_learn" baseline is the same program with one expert per model and beta = 0, vmapped over the
 experts: n separate models, each with its own networks, buffer and envs. "sac" trains the experts
 themselves the same way, one model per preference, on the env's true reward (``algos.sac``) instead of
-from demonstrations.
+from demonstrations. "gail" is the adversarial baseline, also one model per expert: each update first
+trains that model's discriminator on the expert and policy samples, then SAC on the policy samples with
+the discriminator's reward (``algos.gail``).
 """
 
 from __future__ import annotations
@@ -22,7 +24,7 @@ import optax
 from flax import struct
 
 from moiq_jax import envs, replay
-from moiq_jax.algos import moiq, sac
+from moiq_jax.algos import gail, moiq, sac
 from moiq_jax.config import Config
 from moiq_jax.envs.wrappers import AutoReset, VmapWrapper
 from moiq_jax.evaluate import pearson, preference_returns
@@ -42,6 +44,7 @@ class RunnerState:
     env_steps: jax.Array  # per expert
     best_params: moiq.Params
     best_return: jax.Array  # mean scalarised evaluation return of best_params
+    discriminator: gail.DiscriminatorState | None = None  # gail only: one per expert (leading expert axis)
 
 
 class Trainer(NamedTuple):
@@ -88,10 +91,11 @@ TRANSITION_FIELDS = ("obs", "action", "next_obs", "done")  # what the inverse-RL
 
 
 def make_train(config: Config, demos: Demonstrations | None = None) -> Trainer:
-    """Build the pure training functions for ``config`` (``algo`` "moiq", "iq_learn" or "sac")."""
+    """Build the pure training functions for ``config`` (``algo`` "moiq", "iq_learn", "sac" or "gail")."""
     config.validate()
     experts = config.algo == "sac"  # training experts: the true reward, no demonstrations
-    separate = config.algo in ("iq_learn", "sac")
+    adversarial = config.algo == "gail"  # SAC on a discriminator's reward
+    separate = config.algo in ("iq_learn", "sac", "gail")
     if experts:
         # Experts learn the task itself: termination ends the episode (no absorbing state to imitate).
         env = envs.make(config.env)
@@ -102,11 +106,13 @@ def make_train(config: Config, demos: Demonstrations | None = None) -> Trainer:
         data = jax.tree_util.tree_map(jnp.asarray, _expert_transitions(demos))
         preferences = jnp.asarray(demos.preferences)
         env = envs.make(config.env, absorbing=True)
-    critic_objective = sac.critic_loss if experts else moiq.critic_loss
+    critic_objective = sac.critic_loss if experts or adversarial else moiq.critic_loss
     rollout_env = VmapWrapper(AutoReset(env), config.num_envs)
     nets = moiq.networks_of_sizes(config.hidden_sizes, env.reward_dim, env.action_size, config.action_scale)
     optimisers = moiq.Optimisers(optax.adam(config.critic_lr), optax.adam(config.actor_lr), optax.adam(config.alpha_lr))
     hyper = moiq.Hyper(config.gamma, config.alpha_reg, -float(env.action_size), config.use_target)
+    discriminator = gail.Discriminator(config.hidden_sizes)
+    disc_optimiser = optax.adam(config.disc_lr)
     iterations_per_chunk = config.eval_interval // config.num_envs
     num_chunks = config.total_steps // config.eval_interval
 
@@ -120,8 +126,13 @@ def make_train(config: Config, demos: Demonstrations | None = None) -> Trainer:
                    "reward": jnp.zeros(env.reward_dim)}
         buffers = jax.vmap(lambda _: replay.init(example, config.buffer_size))(jnp.arange(num_experts))
         env_state = jax.vmap(rollout_env.reset)(jax.random.split(env_key, num_experts))
+        disc_state = None
+        if adversarial:
+            key, disc_key = jax.random.split(key)
+            disc_state = jax.vmap(lambda k: gail.init(discriminator, disc_optimiser, k, env.observation_size,
+                                                      env.action_size))(jax.random.split(disc_key, num_experts))
         return RunnerState(learner, buffers, env_state, key, jnp.zeros((), jnp.int32),
-                           learner.params, jnp.full((), -jnp.inf))
+                           learner.params, jnp.full((), -jnp.inf), disc_state)
 
     def sample_batches(buffers, expert_data, key):
         """Per expert: its replay batch alone when training experts; else expert rows, then policy rows."""
@@ -153,31 +164,47 @@ def make_train(config: Config, demos: Demonstrations | None = None) -> Trainer:
                        "done": nxt.done.astype(jnp.float32), "reward": nxt.reward}
         buffers = jax.vmap(replay.add)(state.buffers, transitions)
 
-        def learn(learner):
-            def one_update(learner, k):
+        def learn(models):
+            def one_update(models, k):
+                learner, disc_state = models
                 batch_key, step_key = jax.random.split(k)
                 batches = sample_batches(buffers, expert_data, batch_key)
-                return moiq.update(learner, nets, optimisers, batches, prefs, beta, step_key, hyper,
-                                   config.tau, config.learn_alpha, critic_objective)
+                disc_metrics = {}
+                if adversarial:
+                    disc_state, disc_metrics = jax.vmap(
+                        lambda d, b: gail.update(d, discriminator, disc_optimiser, b))(disc_state, batches)
+                    policy = {name: batches[name][:, config.batch_size:] for name in TRANSITION_FIELDS}
+                    batches = jax.vmap(lambda p, b: gail.with_reward(discriminator, p, b, env.reward_dim))(
+                        disc_state.params, policy)
+                learner, metrics = moiq.update(learner, nets, optimisers, batches, prefs, beta, step_key, hyper,
+                                               config.tau, config.learn_alpha, critic_objective)
+                return (learner, disc_state), {**metrics, **disc_metrics}
 
-            learner, metrics = jax.lax.scan(one_update, learner, jax.random.split(update_key, config.updates_per_step))
-            return learner, jax.tree_util.tree_map(lambda m: m[-1], metrics)
+            models, metrics = jax.lax.scan(one_update, models, jax.random.split(update_key, config.updates_per_step))
+            return models, jax.tree_util.tree_map(lambda m: m[-1], metrics)
 
         ready = state.env_steps + config.num_envs > config.learning_starts
-        learner, metrics = jax.lax.cond(
-            ready, learn, lambda lrn: (lrn, jax.tree_util.tree_map(
-                lambda s: jnp.zeros(s.shape, s.dtype), jax.eval_shape(learn, lrn)[1])), state.learner)
+        (learner, disc_state), metrics = jax.lax.cond(
+            ready, learn, lambda models: (models, jax.tree_util.tree_map(
+                lambda s: jnp.zeros(s.shape, s.dtype), jax.eval_shape(learn, models)[1])),
+            (state.learner, state.discriminator))
         metrics = {**metrics, "updated": ready}
-        return state.replace(learner=learner, buffers=buffers, env_state=nxt, key=key,
+        return state.replace(learner=learner, discriminator=disc_state, buffers=buffers, env_state=nxt, key=key,
                              env_steps=state.env_steps + config.num_envs), metrics
 
-    def evaluate_params(params, prefs, expert_data, key):
+    def evaluate_params(params, prefs, expert_data, disc_state, key):
         """Deterministic-policy vector returns per preference and the recovered-reward correlation
-        (None when training experts, which recover no reward)."""
+        (None when training experts, which recover no reward; for gail, of the discriminator's reward)."""
         keys = jax.random.split(key)
         returns = preference_returns(nets, params.actor, env, prefs, keys[1], config.eval_episodes).mean(axis=1)
         if expert_data is None:
             return returns, None
+        if adversarial:
+            def disc_correlation(disc_params, data_i, preference):
+                rewards = gail.generator_reward(discriminator.apply(disc_params, data_i["obs"], data_i["action"]))
+                return pearson(rewards, data_i["true_reward"] @ preference)
+
+            return returns, jax.vmap(disc_correlation)(disc_state.params, expert_data, prefs)
         alphas = jnp.exp(params.log_alpha)
 
         def correlation(data_i, preference, alpha, k):
@@ -193,7 +220,7 @@ def make_train(config: Config, demos: Demonstrations | None = None) -> Trainer:
         updated = jnp.maximum(jnp.sum(metrics.pop("updated")), 1)
         metrics = jax.tree_util.tree_map(lambda m: jnp.sum(m, axis=0) / updated, metrics)  # mean over updates
         key, eval_key = jax.random.split(state.key)
-        returns, corr = evaluate_params(state.learner.params, prefs, expert_data, eval_key)
+        returns, corr = evaluate_params(state.learner.params, prefs, expert_data, state.discriminator, eval_key)
         scalar = jnp.sum(returns * prefs, axis=-1)
         score = jnp.mean(scalar)
         better = score > state.best_return
