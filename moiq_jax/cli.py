@@ -367,7 +367,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_cmd_rollout)
 
     p = sub.add_parser("train", help="train an algorithm; every Config field is a flag",
-                       description="Train (moiq, iq_learn, admm, or sac experts) and print each preference's return "
+                       description="Train (moiq, iq_learn, gail, admm, or sac experts) and print each preference's return "
                                    "against its expert's. Metrics, config and checkpoints go to the run directory.")
     add_config_flags(p)
     p.add_argument("--run-dir", help="where logs and checkpoints go (default: runs/<env>-<algo>-<time>)")

@@ -20,7 +20,7 @@ class Config:
     env: str = "cdst"  # a registered env (see `moiq envs`)
     algo: str = "moiq"  # moiq, iq_learn or gail (one model per expert), admm (discrete DST), sac (train experts)
     preferences: tuple[tuple[float, ...], ...] = ((0.9, 0.1), (0.5, 0.5), (0.1, 0.9))  # one per expert
-    num_demos: int = 10  # demonstrations per expert
+    num_demos: int = 10  # demonstrations per expert (the first ones of a --demos file)
     demos: str | None = None  # a Demonstrations file; None: record them from the env's oracle experts
     seed: int = 0  # random seed of the whole run
     gamma: float = 0.99  # discount factor

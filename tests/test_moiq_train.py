@@ -83,3 +83,14 @@ def test_sweep_sharded_over_two_host_devices_matches(swept):
     assert out.returncode == 0, out.stderr[-2000:]
     sharded = np.array(eval(out.stdout.strip().splitlines()[-1]))
     np.testing.assert_allclose(sharded, swept["history"]["critic_loss"], rtol=1e-4, atol=1e-5)
+
+
+def test_num_demos_takes_the_first_episodes_of_a_demos_file(tmp_path):
+    source = moiq_jax.experts.oracle_demonstrations("dst-mini", [(0.9, 0.1), (0.1, 0.9)], num_demos=4, seed=3)
+    source.save(tmp_path / "d.npz")
+    config = moiq_jax.Config(env="dst-mini", preferences=((0.9, 0.1), (0.1, 0.9)), demos=str(tmp_path / "d.npz"))
+    one = moiq_train.load_demonstrations(config.replace(num_demos=1))
+    assert one.num_episodes == 1
+    np.testing.assert_array_equal(one.actions[:, 0], source.actions[:, 0])
+    with pytest.raises(ValueError, match="hold 4 episodes per expert, fewer than num_demos = 5"):
+        moiq_train.load_demonstrations(config.replace(num_demos=5))

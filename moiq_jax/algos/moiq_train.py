@@ -58,8 +58,8 @@ class Trainer(NamedTuple):
 
 
 def load_demonstrations(config: Config) -> Demonstrations:
-    """The configured demos file (its preferences must be the config's), or fresh oracle demonstrations;
-    experts sorted by preference."""
+    """The first ``num_demos`` episodes per expert of the configured demos file (its preferences must be the
+    config's), or fresh oracle demonstrations; experts sorted by preference."""
     env = envs.make(config.env, absorbing=True)
     if config.demos is not None:
         demos = Demonstrations.load(config.demos, env)
@@ -68,6 +68,11 @@ def load_demonstrations(config: Config) -> Demonstrations:
         if len(given) != len(recorded) or not np.allclose(given, recorded, atol=1e-5):
             raise ValueError(f"the demos in {config.demos!r} are of preferences {recorded}, not the configured "
                              f"{given}; set --preferences to match the file")
+        if demos.num_episodes < config.num_demos:
+            raise ValueError(f"the demos in {config.demos!r} hold {demos.num_episodes} episodes per expert, fewer "
+                             f"than num_demos = {config.num_demos}")
+        demos = demos.replace(**{name: np.asarray(getattr(demos, name))[:, : config.num_demos]
+                                 for name in ("obs", "actions", "next_obs", "rewards", "dones", "lengths")})
     else:
         demos = oracle_demonstrations(config.env, config.preferences, config.num_demos, config.seed)
     order = np.lexsort(np.asarray(demos.preferences).T[::-1])[::-1]  # descending, first objective first
@@ -193,8 +198,11 @@ def make_train(config: Config, demos: Demonstrations | None = None) -> Trainer:
                              env_steps=state.env_steps + config.num_envs), metrics
 
     def evaluate_params(params, prefs, expert_data, disc_state, key):
-        """Deterministic-policy vector returns per preference and the recovered-reward correlation
-        (None when training experts, which recover no reward; for gail, of the discriminator's reward)."""
+        """Deterministic-policy vector returns per preference and the recovered reward's Pearson correlations
+        with the true one on the demonstrations, as a dict of metrics: scalarised by the expert's preference
+        (``reward_correlation``) and, for moiq and iq_learn, per objective
+        (``reward_correlation_objectives``, ``[E, d]``). None for experts, which recover no reward; for gail,
+        the discriminator's (scalar) reward against the true scalarised one."""
         keys = jax.random.split(key)
         returns = preference_returns(nets, params.actor, env, prefs, keys[1], config.eval_episodes).mean(axis=1)
         if expert_data is None:
@@ -204,15 +212,17 @@ def make_train(config: Config, demos: Demonstrations | None = None) -> Trainer:
                 rewards = gail.generator_reward(discriminator.apply(disc_params, data_i["obs"], data_i["action"]))
                 return pearson(rewards, data_i["true_reward"] @ preference)
 
-            return returns, jax.vmap(disc_correlation)(disc_state.params, expert_data, prefs)
+            return returns, {"reward_correlation": jax.vmap(disc_correlation)(disc_state.params, expert_data, prefs)}
         alphas = jnp.exp(params.log_alpha)
 
         def correlation(data_i, preference, alpha, k):
             rewards, _ = moiq.recovered_rewards(nets, params.critic, params, alpha, data_i, preference, k, config.gamma)
-            return pearson(jnp.mean(rewards, 0) @ preference, data_i["true_reward"] @ preference)
+            rewards = jnp.mean(rewards, 0)  # over the twins
+            per_objective = jax.vmap(pearson, in_axes=(1, 1))(rewards, data_i["true_reward"])
+            return pearson(rewards @ preference, data_i["true_reward"] @ preference), per_objective
 
-        corr = jax.vmap(correlation)(expert_data, prefs, alphas, jax.random.split(keys[0], prefs.shape[0]))
-        return returns, corr
+        scalar, per_objective = jax.vmap(correlation)(expert_data, prefs, alphas, jax.random.split(keys[0], prefs.shape[0]))
+        return returns, {"reward_correlation": scalar, "reward_correlation_objectives": per_objective}
 
     def run_chunk(state: RunnerState, beta, expert_data, prefs):
         state, metrics = jax.lax.scan(lambda s, _: env_iteration(s, beta, expert_data, prefs), state, None,
@@ -220,7 +230,7 @@ def make_train(config: Config, demos: Demonstrations | None = None) -> Trainer:
         updated = jnp.maximum(jnp.sum(metrics.pop("updated")), 1)
         metrics = jax.tree_util.tree_map(lambda m: jnp.sum(m, axis=0) / updated, metrics)  # mean over updates
         key, eval_key = jax.random.split(state.key)
-        returns, corr = evaluate_params(state.learner.params, prefs, expert_data, state.discriminator, eval_key)
+        returns, correlations = evaluate_params(state.learner.params, prefs, expert_data, state.discriminator, eval_key)
         scalar = jnp.sum(returns * prefs, axis=-1)
         score = jnp.mean(scalar)
         better = score > state.best_return
@@ -228,8 +238,8 @@ def make_train(config: Config, demos: Demonstrations | None = None) -> Trainer:
                                       state.learner.params, state.best_params)
         state = state.replace(key=key, best_params=best, best_return=jnp.maximum(score, state.best_return))
         metrics = {**metrics, "eval_return": returns, "eval_scalar_return": scalar, "env_steps": state.env_steps}
-        if corr is not None:
-            metrics["reward_correlation"] = corr
+        if correlations is not None:
+            metrics.update(correlations)
         return state, metrics
 
     if separate:  # n single-expert models, vmapped; beta is irrelevant (no neighbours) and set to 0

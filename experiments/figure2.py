@@ -1,0 +1,39 @@
+"""The paper's Figure 2 on the MuJoCo tasks: learning curves of MOIQ (beta = 5, one model) against GAIL (one
+model per preference), 10 demonstrations per preference, EWMA (alpha 0.1) of the scalarised evaluation return,
+mean and spread over seeds, with the experts' returns.
+
+    PYTHONPATH=. python experiments/figure2.py [--envs ...] [--seeds 5] [--quick] [--out results/figure2]
+
+MOIQ's runs are table1.py's cached sweep; GAIL's (paper_mujoco.gail_config) are cached beside them. Writes
+``figure2.png`` and ``figure2.json`` (final EWMA return per method and setting).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import pathlib
+
+import paper_mujoco as paper
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    paper.add_arguments(parser)
+    parser.add_argument("--out", default="results/figure2")
+    args = parser.parse_args()
+    out = pathlib.Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+
+    def methods_of(env):
+        gail = paper.task_sweep(env, args, "gail", paper.gail_config(env, args.quick), betas=(0.0,))
+        return {"MOIQ beta=5": paper.learning_curves(paper.task_sweep(env, args), 5.0),
+                "GAIL": paper.learning_curves(gail, 0.0)}
+
+    summary = paper.curves_figure(args.envs, methods_of, out / "figure2.png")
+    (out / "figure2.json").write_text(json.dumps({"final_ewma_return": summary}, indent=1))
+    print(json.dumps(summary, indent=1))
+
+
+if __name__ == "__main__":
+    main()

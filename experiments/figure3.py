@@ -1,0 +1,78 @@
+"""The paper's Figure 3 on the two-objective MuJoCo tasks: the vector returns of MOIQ's (beta = 5) best models
+for the 19 preferences [1 - 0.05k, 0.05k], beside the experts', with the hypervolume of each.
+
+    PYTHONPATH=. python experiments/figure3.py [--envs ...] [--seeds 5] [--quick] [--out results/figure3]
+
+Uses the same cached sweeps as table1.py; writes ``figure3.png``, ``figure3.csv`` (every seed and preference)
+and ``figure3.json`` (hypervolumes). The hypervolume reference point is the component-wise minimum of all the
+points compared for that task (experts' and policies'), so the two hypervolumes measure the same area.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import pathlib
+
+import jax
+import matplotlib
+import numpy as np
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+import paper_mujoco as paper
+
+import moiq_jax
+from moiq_jax.evaluate import hypervolume
+from moiq_jax.preferences import preference_sweep
+
+TWO_OBJECTIVES = tuple(env for env in paper.ENVS if len(paper.moiq_config(env).preferences[0]) == 2)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    paper.add_arguments(parser)
+    parser.set_defaults(envs=list(TWO_OBJECTIVES))
+    parser.add_argument("--episodes", type=int, default=100, help="evaluation episodes per preference")
+    parser.add_argument("--out", default="results/figure3")
+    args = parser.parse_args()
+    out = pathlib.Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    episodes = 2 if args.quick else args.episodes
+    preferences = preference_sweep(19)
+
+    rows, summary = [], {}
+    envs = [env for env in args.envs if env in TWO_OBJECTIVES]
+    fig, axes = plt.subplots(1, len(envs), figsize=(5 * len(envs), 4), layout="constrained", squeeze=False)
+    for ax, env in zip(axes[0], envs):
+        result = paper.task_sweep(env, args)
+        runs = paper.runs_of(result, 5.0)
+        returns = np.stack([moiq_jax.evaluate(jax.tree_util.tree_map(lambda x, r=r: x[r], result["best_params"]), env,
+                                              preferences, episodes=episodes) for r in runs])  # [seeds, 19, 2]
+        experts = paper.expert_returns(env)
+        reference = np.minimum(returns.reshape(-1, 2).min(0), experts.min(0)) - 1e-6
+        summary[env] = {"hypervolume_per_seed": [round(hypervolume(r, reference), 2) for r in returns],
+                        "expert_hypervolume": round(hypervolume(experts, reference), 2), "reference": reference.tolist()}
+        for s, seed_returns in zip(result["seeds"][runs], returns):
+            rows += [{"env": env, "seed": int(s), "preference": np.round(w, 2).tolist(), "vector_return": r.round(2).tolist()}
+                     for w, r in zip(preferences, seed_returns)]
+        mean = returns.mean(0)
+        points = ax.scatter(mean[:, 1], mean[:, 0], c=preferences[:, 0], cmap="viridis", label="MOIQ, 19 preferences")
+        ax.scatter(experts[:, 1], experts[:, 0], marker="*", s=160, c="k", label="experts")
+        ax.set(title=f"{env}\nhypervolume MOIQ {np.mean(summary[env]['hypervolume_per_seed']):.3g}, "
+                     f"experts {summary[env]['expert_hypervolume']:.3g}",
+               xlabel="objective 2 return", ylabel="objective 1 (x velocity) return")
+        ax.legend(fontsize=7)
+    fig.colorbar(points, ax=axes[0].tolist(), label="weight of objective 1")
+    fig.savefig(out / "figure3.png", dpi=120)
+    with open(out / "figure3.csv", "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+    (out / "figure3.json").write_text(json.dumps(summary, indent=1))
+    print(json.dumps(summary, indent=1))
+
+
+if __name__ == "__main__":
+    main()

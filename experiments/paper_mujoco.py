@@ -1,0 +1,151 @@
+"""What the MuJoCo experiment scripts (table1-3.py, figure2-4.py) share: the paper's numbers, the configs
+per task, cached vmapped sweeps over beta and seeds, and the evaluation of their best models.
+
+A task's MOIQ sweep (betas 5 and 0 x seeds, one compiled program: ``moiq_jax.sweep``) serves Tables 1-3 and
+Figures 2 and 3, so it runs once and is kept as ``<cache>/<env>-moiq-<steps>.pkl``; GAIL (Figure 2) and the
+one-demonstration runs (Figure 4) have sweeps of their own. ``--quick`` runs tiny sweeps (CI smoke size)
+into ``<cache>/quick``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import pathlib
+import pickle
+import time
+
+import jax
+import matplotlib
+import numpy as np
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+
+import moiq_jax
+from moiq_jax.algos import moiq_train
+from moiq_jax.config import Config, tuned
+
+ENVS = ("mo-halfcheetah", "mo-hopper", "mo-walker2d", "mo-ant")
+DEMOS = pathlib.Path(__file__).resolve().parent / "demos"
+BETAS = (5.0, 0.0)
+
+# The paper's Table 1 (MOIQ beta = 5, best model), Table 2 (EWMA return at 500K steps, beta 0 and 5) and
+# Table 3 (Pearson correlation of learned and true scalarised reward), per preference of tuned(env).
+PAPER_TABLE1 = {"mo-halfcheetah": (4377, 2261, 315), "mo-hopper": (2055, 2283, 896), "mo-walker2d": (3577, 1735, 879),
+                "mo-ant": (2475, 1039, 463)}
+PAPER_TABLE2 = {"mo-halfcheetah": ((3578, 3654), (2152, 2160), (341, 347)),
+                "mo-hopper": ((1118, 1268), (1081, 1189), (638, 707)),
+                "mo-walker2d": ((2386, 2636), (1560, 1326), (714, 738)),
+                "mo-ant": ((2265, 2249), (926, 911), (295, 281))}
+PAPER_TABLE3 = {"mo-halfcheetah": (0.63, 0.52, 0.19), "mo-hopper": (0.91, 0.1, 0.93), "mo-walker2d": (0.96, 0.96, 0.98),
+                "mo-ant": (0.92, 0.95, 0.86)}
+
+
+def moiq_config(env: str, quick: bool = False, **changes) -> Config:
+    """MOIQ on ``env`` from its committed SAC demonstrations: the paper's settings (Table 5, 500K env steps
+    per expert, evaluations every 5K) with 16 envs per expert and 16 updates per vectorised step, so MJX
+    steps run batched while the updates per env step stay the paper's one; then ``changes``. ``quick``: a
+    CI-sized run."""
+    config = tuned(env, demos=str(DEMOS / f"{env}.npz"), total_steps=499_200, num_envs=16, updates_per_step=16,
+                   learning_starts=4_992, eval_interval=4_992, eval_episodes=10, buffer_size=499_200)
+    if quick:
+        config = config.replace(total_steps=64, eval_interval=32, learning_starts=16, buffer_size=64,
+                                hidden_sizes=(16, 16), batch_size=16, updates_per_step=1, eval_episodes=2)
+    return config.replace(**changes)
+
+
+def gail_config(env: str, quick: bool = False) -> Config:
+    """GAIL with the paper's Table 4 settings (SAC generator: learning rate 3e-4, tau 0.05, batch 256), one
+    model per preference, on the same demonstrations and env steps as MOIQ."""
+    return moiq_config(env, quick, algo="gail", actor_lr=3e-4, critic_lr=3e-4, disc_lr=3e-4, tau=0.05,
+                       use_target=True, beta=0.0)
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--envs", nargs="+", default=list(ENVS), choices=ENVS)
+    parser.add_argument("--seeds", type=int, default=5)
+    parser.add_argument("--quick", action="store_true", help="a tiny run of every step (CI smoke test)")
+    parser.add_argument("--cache", default="results/mujoco/sweeps", help="where the sweeps are kept")
+
+
+def task_sweep(env: str, args, name: str = "moiq", config: Config | None = None, betas=BETAS) -> dict:
+    """The ``betas`` x seed sweep ``name`` of ``env`` (``moiq_train.sweep``'s result plus ``config`` and
+    ``seconds``; ``config`` defaults to ``moiq_config``), loaded from the cache when a run with the same
+    config and seeds is there, else trained and cached."""
+    config = moiq_config(env, args.quick) if config is None else config
+    seeds = list(range(2 if args.quick else args.seeds))
+    cache = pathlib.Path(args.cache) / ("quick" if args.quick else "")
+    path = cache / f"{env}-{name}-{config.total_steps}.pkl"
+    if path.exists():
+        cached = pickle.loads(path.read_bytes())
+        if cached["config"] == config and list(cached["seeds"][: len(seeds)]) == seeds:
+            return cached
+    start = time.perf_counter()
+    result = jax.device_get(moiq_train.sweep(config, beta=list(betas), seed=seeds))
+    result.update(config=config, seconds=time.perf_counter() - start)
+    cache.mkdir(parents=True, exist_ok=True)
+    path.write_bytes(pickle.dumps(result))
+    print(f"{env}: trained {name}, {len(betas)} betas x {len(seeds)} seeds in {result['seconds']:.0f}s (cached in {path})")
+    return result
+
+
+def learning_curves(result: dict, beta: float) -> tuple[np.ndarray, np.ndarray]:
+    """``(env steps per expert [evals], EWMA scalarised evaluation returns [seeds, evals, E])`` of the
+    ``beta`` runs of a sweep (one model, or one per expert: the steps are the same)."""
+    steps = np.asarray(result["history"]["env_steps"])[0]
+    steps = steps if steps.ndim == 1 else steps[:, 0]
+    runs = runs_of(result, beta)
+    return steps, ewma(np.asarray(result["history"]["eval_scalar_return"])[runs], axis=1)
+
+
+def runs_of(result: dict, beta: float) -> np.ndarray:
+    return np.flatnonzero(np.isclose(result["betas"], beta))
+
+
+def best_model_returns(result: dict, beta: float, episodes: int) -> np.ndarray:
+    """``[seeds, E, d]`` mean vector returns over ``episodes`` of each ``beta`` run's best model at the
+    experts' preferences."""
+    config = result["config"]
+    return np.stack([moiq_jax.evaluate(jax.tree_util.tree_map(lambda x, r=r: x[r], result["best_params"]),
+                                       config.env, config.preferences, episodes=episodes)
+                     for r in runs_of(result, beta)])
+
+
+def expert_returns(env: str) -> np.ndarray:
+    """``[E, d]`` the committed demonstrations' mean vector returns."""
+    return moiq_jax.Demonstrations.load(DEMOS / f"{env}.npz").mean_returns()
+
+
+def ewma(values: np.ndarray, alpha: float = 0.1, axis: int = 0) -> np.ndarray:
+    """Exponentially weighted moving average along ``axis`` (the paper's smoothing, alpha = 0.1)."""
+    values = np.moveaxis(np.asarray(values, np.float64), axis, 0)
+    smoothed = np.empty_like(values)
+    smoothed[0] = values[0]
+    for t in range(1, len(values)):
+        smoothed[t] = alpha * values[t] + (1 - alpha) * smoothed[t - 1]
+    return np.moveaxis(smoothed, 0, axis)
+
+
+def curves_figure(envs, methods_of, path: pathlib.Path, note: str = "") -> dict:
+    """One row of learning-curve panels per env, one panel per expert preference: the mean and spread over
+    seeds of each method's ``learning_curves`` (``methods_of(env)`` -> {method: (steps, curves)}) with the
+    expert's return; saved to ``path``. Returns the final EWMA return per env, preference and method."""
+    summary = {}
+    fig, axes = plt.subplots(len(envs), 3, figsize=(13, 3.2 * len(envs)), layout="constrained", squeeze=False)
+    for row, env in zip(axes, envs):
+        methods = methods_of(env)
+        preferences = moiq_config(env).preferences
+        expert = (expert_returns(env) * np.asarray(preferences)).sum(-1)
+        for e, ax in enumerate(row):
+            for method, (steps, curves) in methods.items():
+                mean, std = curves[:, :, e].mean(0), curves[:, :, e].std(0)
+                ax.plot(steps, mean, label=method)
+                ax.fill_between(steps, mean - std, mean + std, alpha=0.2)
+                summary.setdefault(env, {}).setdefault(str(list(preferences[e])), {})[method] = round(float(mean[-1]), 2)
+            ax.axhline(expert[e], color="k", linestyle="--", label="expert")
+            ax.set_title(f"{env} {list(preferences[e])}{note}", fontsize=9)
+            ax.set_xlabel("env steps per expert")
+        row[0].set_ylabel("EWMA scalarised return")
+    axes[0][0].legend(fontsize=7)
+    fig.savefig(path, dpi=120)
+    return summary

@@ -1,0 +1,70 @@
+"""The paper's Table 1 on the MuJoCo tasks: the best model's return of MOIQ (beta = 5) per task and
+preference, over 100 evaluation episodes and 5 seeds, next to the experts' and the paper's.
+
+    PYTHONPATH=. python experiments/table1.py [--envs mo-hopper ...] [--seeds 5] [--quick] [--out results/table1]
+
+Trains (or loads from ``--cache``) each task's beta x seed sweep (``paper_mujoco.task_sweep``) and writes
+``table1.csv`` / ``.json`` and ``table1.png`` (MOIQ / expert per setting) under ``--out``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import pathlib
+
+import matplotlib
+import numpy as np
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+import paper_mujoco as paper
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    paper.add_arguments(parser)
+    parser.add_argument("--episodes", type=int, default=100, help="evaluation episodes per best model")
+    parser.add_argument("--out", default="results/table1")
+    args = parser.parse_args()
+    out = pathlib.Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    episodes = 2 if args.quick else args.episodes
+
+    rows = []
+    for env in args.envs:
+        result = paper.task_sweep(env, args)
+        preferences = np.asarray(result["config"].preferences)
+        returns = paper.best_model_returns(result, 5.0, episodes)  # [seeds, E, d]
+        scalar = (returns * preferences).sum(-1)
+        expert = (paper.expert_returns(env) * preferences).sum(-1)
+        for e, w in enumerate(preferences):
+            rows.append({"env": env, "preference": w.tolist(), "moiq_mean": round(float(scalar[:, e].mean()), 2),
+                         "moiq_std": round(float(scalar[:, e].std()), 2), "expert": round(float(expert[e]), 2),
+                         "ratio_to_expert": round(float(scalar[:, e].mean() / expert[e]), 3),
+                         "paper_moiq": paper.PAPER_TABLE1[env][e], "seeds": int(scalar.shape[0]), "episodes": episodes})
+    with open(out / "table1.csv", "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+    reached = sum(r["ratio_to_expert"] >= 0.9 for r in rows)
+    (out / "table1.json").write_text(json.dumps({"rows": rows, "settings_at_90_percent_of_expert": reached}, indent=1))
+
+    fig, ax = plt.subplots(figsize=(max(6, len(rows)), 3.6), layout="constrained")
+    ax.bar(range(len(rows)), [r["ratio_to_expert"] for r in rows], yerr=[r["moiq_std"] / abs(r["expert"]) for r in rows])
+    ax.axhline(0.9, color="k", linestyle="--", label="90% of expert")
+    ax.set_xticks(range(len(rows)), [f"{r['env']}\n{r['preference']}" for r in rows], fontsize=7)
+    ax.set(ylabel="MOIQ best model / expert return", title="Table 1: MOIQ (beta = 5) against the experts")
+    ax.legend()
+    fig.savefig(out / "table1.png", dpi=120)
+
+    print(f"{'env':<15} {'preference':<18} {'MOIQ':>16} {'expert':>9} {'ratio':>6} {'paper MOIQ':>10}")
+    for r in rows:
+        print(f"{r['env']:<15} {r['preference']!s:<18} {r['moiq_mean']:9.1f} ± {r['moiq_std']:5.1f} {r['expert']:9.1f} "
+              f"{r['ratio_to_expert']:6.2f} {r['paper_moiq']:10}")
+    print(f"settings at 90% of the expert's return or better: {reached} of {len(rows)} (goal: 12 of 15)")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,69 @@
+"""The paper's Table 2 on the MuJoCo tasks: MOIQ with beta = 0 against beta = 5, as the EWMA (alpha 0.1)
+of the scalarised evaluation return at the end of training, averaged over seeds.
+
+    PYTHONPATH=. python experiments/table2.py [--envs ...] [--seeds 5] [--quick] [--out results/table2]
+
+Uses the same cached sweeps as table1.py; writes ``table2.csv`` / ``.json`` and ``table2.png`` (EWMA
+curves of both betas per setting).
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import pathlib
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+import paper_mujoco as paper
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    paper.add_arguments(parser)
+    parser.add_argument("--out", default="results/table2")
+    args = parser.parse_args()
+    out = pathlib.Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+
+    rows, curves = [], {}
+    for env in args.envs:
+        result = paper.task_sweep(env, args)
+        smoothed = {beta: paper.learning_curves(result, beta) for beta in paper.BETAS}  # (steps, [seeds, evals, E])
+        steps = smoothed[5.0][0]
+        for e, w in enumerate(result["config"].preferences):
+            final = {beta: float(curve[:, -1, e].mean()) for beta, (_, curve) in smoothed.items()}
+            change = 100 * (final[5.0] - final[0.0]) / abs(final[0.0])
+            rows.append({"env": env, "preference": list(w), "beta0": round(final[0.0], 2), "beta5": round(final[5.0], 2),
+                         "change_percent": round(change, 2), "env_steps": int(steps[-1]),
+                         "paper_beta0": paper.PAPER_TABLE2[env][e][0], "paper_beta5": paper.PAPER_TABLE2[env][e][1]})
+            curves[(env, e)] = (steps, {beta: curve[:, :, e] for beta, (_, curve) in smoothed.items()})
+    with open(out / "table2.csv", "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+    better = sum(r["beta5"] > r["beta0"] for r in rows)
+    (out / "table2.json").write_text(json.dumps({"rows": rows, "settings_where_beta5_beats_beta0": better}, indent=1))
+
+    fig, axes = plt.subplots(1, len(curves), figsize=(3.2 * len(curves), 3), layout="constrained", squeeze=False)
+    for ax, ((env, e), (steps, by_beta)) in zip(axes[0], curves.items()):
+        for beta, runs in by_beta.items():
+            ax.plot(steps, runs.mean(0), label=f"beta={beta:g}")
+        ax.set_xlabel("env steps per expert")
+        ax.set_title(f"{env}\n{list(paper.moiq_config(env).preferences[e])}", fontsize=8)
+    axes[0][0].set_ylabel("EWMA scalarised return")
+    axes[0][0].legend()
+    fig.savefig(out / "table2.png", dpi=120)
+
+    print(f"{'env':<15} {'preference':<18} {'beta=0':>9} {'beta=5':>9} {'change':>8}   paper: beta=0 beta=5")
+    for r in rows:
+        print(f"{r['env']:<15} {r['preference']!s:<18} {r['beta0']:9.1f} {r['beta5']:9.1f} {r['change_percent']:7.1f}%"
+              f"   {r['paper_beta0']:>12} {r['paper_beta5']:>6}")
+    print(f"beta = 5 beats beta = 0 in {better} of {len(rows)} settings (paper: 10 of 15)")
+
+
+if __name__ == "__main__":
+    main()
