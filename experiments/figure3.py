@@ -11,7 +11,6 @@ points compared for that task (experts' and policies'), so the two hypervolumes 
 from __future__ import annotations
 
 import argparse
-import csv
 import json
 import pathlib
 
@@ -66,10 +65,7 @@ def main() -> None:
         ax.legend(fontsize=7)
     fig.colorbar(points, ax=axes[0].tolist(), label="weight of objective 1")
     fig.savefig(out / "figure3.png", dpi=120)
-    with open(out / "figure3.csv", "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
-        writer.writeheader()
-        writer.writerows(rows)
+    paper.write_csv(out / "figure3.csv", rows)
     (out / "figure3.json").write_text(json.dumps(summary, indent=1))
     print(json.dumps(summary, indent=1))
 

@@ -10,6 +10,7 @@ into ``<cache>/quick``.
 from __future__ import annotations
 
 import argparse
+import csv
 import pathlib
 import pickle
 import time
@@ -149,3 +150,11 @@ def curves_figure(envs, methods_of, path: pathlib.Path, note: str = "") -> dict:
     axes[0][0].legend(fontsize=7)
     fig.savefig(path, dpi=120)
     return summary
+
+
+def write_csv(path: pathlib.Path, rows: list[dict]) -> None:
+    """``rows`` (dicts with the same keys) as a CSV file with a header."""
+    with open(path, "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)

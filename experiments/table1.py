@@ -10,7 +10,6 @@ Trains (or loads from ``--cache``) each task's beta x seed sweep (``paper_mujoco
 from __future__ import annotations
 
 import argparse
-import csv
 import json
 import pathlib
 
@@ -44,10 +43,7 @@ def main() -> None:
                          "moiq_std": round(float(scalar[:, e].std()), 2), "expert": round(float(expert[e]), 2),
                          "ratio_to_expert": round(float(scalar[:, e].mean() / expert[e]), 3),
                          "paper_moiq": paper.PAPER_TABLE1[env][e], "seeds": int(scalar.shape[0]), "episodes": episodes})
-    with open(out / "table1.csv", "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
-        writer.writeheader()
-        writer.writerows(rows)
+    paper.write_csv(out / "table1.csv", rows)
     reached = sum(r["ratio_to_expert"] >= 0.9 for r in rows)
     (out / "table1.json").write_text(json.dumps({"rows": rows, "settings_at_90_percent_of_expert": reached}, indent=1))
 

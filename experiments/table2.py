@@ -10,7 +10,6 @@ curves of both betas per setting).
 from __future__ import annotations
 
 import argparse
-import csv
 import json
 import pathlib
 
@@ -41,10 +40,7 @@ def main() -> None:
                          "change_percent": round(change, 2), "env_steps": int(steps[-1]),
                          "paper_beta0": paper.PAPER_TABLE2[env][e][0], "paper_beta5": paper.PAPER_TABLE2[env][e][1]})
             curves[(env, e)] = (steps, {beta: curve[:, :, e] for beta, (_, curve) in smoothed.items()})
-    with open(out / "table2.csv", "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
-        writer.writeheader()
-        writer.writerows(rows)
+    paper.write_csv(out / "table2.csv", rows)
     better = sum(r["beta5"] > r["beta0"] for r in rows)
     (out / "table2.json").write_text(json.dumps({"rows": rows, "settings_where_beta5_beats_beta0": better}, indent=1))
 

@@ -11,7 +11,6 @@ choice); writes ``table3.csv`` / ``.json`` and ``table3.png``.
 from __future__ import annotations
 
 import argparse
-import csv
 import json
 import pathlib
 
@@ -45,10 +44,7 @@ def main() -> None:
                          "std": round(float(scalar[:, e].std()), 3),
                          "per_objective": np.round(per_objective[:, e].mean(0), 3).tolist(),
                          "paper": paper.PAPER_TABLE3[env][e]})
-    with open(out / "table3.csv", "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
-        writer.writeheader()
-        writer.writerows(rows)
+    paper.write_csv(out / "table3.csv", rows)
     at_least = sum(r["correlation"] >= r["paper"] for r in rows)
     (out / "table3.json").write_text(json.dumps({"rows": rows, "settings_at_least_the_papers": at_least}, indent=1))
 
