@@ -7,7 +7,8 @@ runs one after another, and the wall time until the policy reaches the experts' 
   expert (compiled ahead, so compile time is reported apart): env steps/s (all experts) and updates/s.
 - Sweep: betas {the tuned one, 0} x ``--seeds`` seeds for ``--steps`` steps as one vmapped program (``moiq_jax.sweep``'s
   program) against the same runs one after another with one compiled single-run program; both timed after
-  compilation, compile times printed too.
+  compilation, compile times printed too; then both with compilation, counting one compile per separate run
+  (each ``train(config)`` call compiles its own program).
 - Time to expert return: ``moiq_jax.train`` (compile included) until an evaluation in which every expert's
   deterministic policy gets exactly its expert's scalarised return, or ``--expert-steps`` steps.
 """
@@ -99,6 +100,10 @@ def main() -> None:
     print(f"sweep of {len(grid)} runs (betas {config.beta:g}, 0 x {args.seeds} seeds): vmapped {sweep_seconds:.1f} s "
           f"(compile {compile_sweep:.1f} s) vs one after another {sequential_seconds:.1f} s: "
           f"{sequential_seconds / sweep_seconds:.2f}x faster")
+    separate = sequential_seconds + len(grid) * compile_single  # as separate train(config) calls: a compile each
+    print(f"with compilation: sweep {sweep_seconds + compile_sweep:.1f} s vs {len(grid)} separate runs, each compiled "
+          f"as a train(config) call compiles ({len(grid)} x {compile_single:.1f} s added), {separate:.1f} s: "
+          f"{separate / (sweep_seconds + compile_sweep):.2f}x faster")
     flops = update_flops(config, trainer.init(key).learner)
     print(f"one update: {flops / 1e6:.0f} MFLOP (XLA's count); updates alone ran at {flops * updates / seconds / 1e9:.1f} "
           f"GFLOP/s in one run and {flops * updates * len(grid) / sweep_seconds / 1e9:.1f} GFLOP/s in the sweep "
