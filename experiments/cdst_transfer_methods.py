@@ -1,0 +1,122 @@
+"""Does MOIQ's vector critic support transfer by generalised policy improvement (GPI)? For each of the 19
+transfer preferences w, act with the candidate action (the actor's at each expert preference w_i) whose best
+``w . min_k Q_k(s, a, w_j)`` over the experts' critics is highest, and compare with the actor's own policy at w.
+
+GPI would pick, for every w, the best of the experts' policies if ``Q(s, a, w_j)`` were the vector value of
+expert j's policy under one common reward; on cdst that is the Pareto-optimal return for the 16 of the 19
+preferences whose optimum some expert showed.
+
+    PYTHONPATH=. python experiments/cdst_gpi_transfer.py [--seeds 5] [--save PICKLE | --reuse PICKLE]
+
+Trains ``tuned("cdst")`` (100K env steps per expert) for the seeds as one sweep, then prints per seed the
+Pareto-optimal counts of both policies and every preference's vector returns.
+"""
+
+from __future__ import annotations
+
+import argparse
+import pathlib
+import pickle
+import time
+
+import cdst_moiq
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+import moiq_jax
+from moiq_jax.algos import moiq_train
+from moiq_jax.algos.moiq import networks_for, recovered_rewards
+from moiq_jax.config import tuned
+from moiq_jax.evaluate import episode_returns
+from moiq_jax.networks import deterministic_action
+
+
+def gpi_action(nets, params, obs, preference, expert_preferences):
+    """The GPI action at one observation: of the experts' policies' actions, the one with the highest
+    ``max_j min_k preference . Q_k(obs, a, w_j)``."""
+    means, _ = jax.vmap(lambda w: nets.actor.apply(params.actor, obs[None], w[None]))(expert_preferences)
+    candidates = deterministic_action(means[:, 0], nets.action_scale)  # (E, action)
+
+    def score(action):
+        q = jax.vmap(lambda w: nets.critic.apply(params.critic, obs[None], action[None], w[None])[:, 0])(
+            expert_preferences)  # (E, 2, d)
+        return jnp.max(jnp.min(q @ preference, axis=1))
+
+    return candidates[jnp.argmax(jax.vmap(score)(candidates))]
+
+
+def gpi_returns(params, env, preferences, expert_preferences) -> np.ndarray:
+    """Vector returns ``[P, d]`` of one deterministic episode of the GPI policy per preference."""
+    nets = networks_for(params)
+
+    def one(preference):
+        policy = lambda _, obs: gpi_action(nets, params, obs, preference, expert_preferences)
+        return episode_returns(env, policy, jax.random.PRNGKey(0), 1)["returns"][0]
+
+    return np.asarray(jax.jit(jax.vmap(one))(jnp.asarray(preferences, jnp.float32)))
+
+
+def selected_by_consensus(params, env, preferences, expert_preferences, gamma) -> np.ndarray:
+    """True vector returns ``[P, d]`` of the rollout, among the actor's at ``preferences`` and the experts',
+    whose discounted consensus-reward return scalarised by each preference is highest."""
+    nets = networks_for(params)
+    alpha = jnp.mean(jnp.exp(params.log_alpha))  # cdst's tuned temperature is fixed and shared
+    family = jnp.concatenate([jnp.asarray(preferences, jnp.float32), expert_preferences])
+
+    def rollout(w):
+        def step(state, _):
+            action = nets.act(params.actor, state.obs[None], w)[0]
+            nxt = env.step(state, action)
+            return nxt, (state.obs, action, nxt.obs, nxt.done.astype(jnp.float32), nxt.reward)
+
+        _, (obs, action, next_obs, done, reward) = jax.lax.scan(step, env.reset(jax.random.PRNGKey(0)), None,
+                                                                length=env.episode_length)
+        batch = {"obs": obs, "action": action, "next_obs": next_obs, "done": done}
+        rewards = jax.vmap(lambda wj, k: recovered_rewards(nets, params.critic, params, alpha, batch, wj, k, gamma,
+                                                           False)[0].mean(0))(
+            expert_preferences, jax.random.split(jax.random.PRNGKey(1), expert_preferences.shape[0]))  # (E, T, d)
+        discounts = gamma ** jnp.arange(obs.shape[0])
+        return jnp.einsum("etd,t->d", rewards, discounts) / expert_preferences.shape[0], reward.sum(0)
+
+    scores, returns = jax.jit(jax.vmap(rollout))(family)
+    return np.asarray(returns)[np.argmax(np.asarray(preferences) @ np.asarray(scores).T, axis=1)]
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seeds", type=int, default=5)
+    parser.add_argument("--reuse", metavar="PICKLE", help="load the trained sweep from this file instead of training")
+    parser.add_argument("--save", metavar="PICKLE", help="save the trained sweep's best parameters to this file")
+    args = parser.parse_args()
+    config = tuned("cdst")
+    demos = moiq_train.load_demonstrations(config)
+    if args.reuse:
+        best_params = pickle.loads(pathlib.Path(args.reuse).read_bytes())
+    else:
+        start = time.perf_counter()
+        best_params = jax.device_get(moiq_train.sweep(config, seed=range(args.seeds), demos=demos)["best_params"])
+        print(f"trained {args.seeds} seeds in {time.perf_counter() - start:.0f} s")
+    if args.save:
+        pathlib.Path(args.save).write_bytes(pickle.dumps(best_params))
+
+    env = moiq_jax.envs.make("cdst", absorbing=True)
+    front = env.unwrapped.pareto_front()
+    preferences = cdst_moiq.TRANSFER_PREFERENCES
+    optimal = np.stack([cdst_moiq.optimal_for(front, w) for w in preferences])
+    expert_preferences = jnp.asarray(demos.preferences, jnp.float32)
+    print(f"beta {config.beta:g}; columns: preference, return of the actor, of GPI, of selection by consensus reward; "
+          "Pareto-optimal return")
+    for seed in range(args.seeds):
+        params = cdst_moiq.run_index(best_params, seed)
+        direct = moiq_jax.evaluate(params, env, preferences)
+        gpi = gpi_returns(params, env, preferences, expert_preferences)
+        selected = selected_by_consensus(params, env, preferences, expert_preferences, config.gamma)
+        hits = [int(np.all(np.isclose(x, optimal, atol=1e-3), axis=1).sum()) for x in (direct, gpi, selected)]
+        print(f"seed {seed}: Pareto-optimal of 19: actor {hits[0]}, GPI {hits[1]}, selected by consensus reward {hits[2]}")
+        for row in zip(preferences, direct, gpi, selected, optimal):
+            print("  " + " ".join(str(np.round(x, 2)) for x in row))
+
+
+if __name__ == "__main__":
+    main()
