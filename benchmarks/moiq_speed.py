@@ -1,12 +1,14 @@
 """MOIQ speed on continuous DST, in one run: throughput of ``train``, a vmapped sweep against the same
 runs one after another, and the wall time until the policy reaches the experts' exact returns.
 
-    python benchmarks/moiq_speed.py [--steps 10000] [--seeds 5] [--expert-steps 100000]
+    python benchmarks/moiq_speed.py [--steps 10000] [--seeds 5] [--expert-steps 100000] [--cpu-devices N]
 
 - Throughput: one compiled ``train(key, beta)`` of the cdst default config for ``--steps`` env steps per
   expert (compiled ahead, so compile time is reported apart): env steps/s (all experts) and updates/s.
 - Sweep: betas {the tuned one, 0} x ``--seeds`` seeds for ``--steps`` steps as one vmapped program (``moiq_jax.sweep``'s
-  program) against the same runs one after another with one compiled single-run program; both timed after
+  program, its runs sharded over ``--cpu-devices`` host devices, by default one per run as ``moiq sweep`` does;
+  in a child process, since the split must precede JAX's start) against the same runs one after another with
+  one compiled single-run program on JAX's default single CPU device, in this process; both timed after
   compilation, compile times printed too; then both with compilation, counting one compile per separate run
   (each ``train(config)`` call compiles its own program).
 - Time to expert return: ``moiq_jax.train`` (compile included) until an evaluation in which every expert's
@@ -18,7 +20,12 @@ from __future__ import annotations
 import argparse
 import functools
 import itertools
+import json
+import os
+import pathlib
 import platform
+import subprocess
+import sys
 import time
 
 import jax
@@ -68,19 +75,46 @@ def num_updates(config) -> int:
     return ready * config.updates_per_step
 
 
+def sweep_grid(config, seeds: int) -> tuple[jax.Array, jax.Array]:
+    """Keys and betas of the sweep: {the tuned beta, 0} x ``seeds`` seeds."""
+    grid = list(itertools.product([config.beta, 0.0], range(seeds)))
+    return jnp.stack([jax.random.PRNGKey(seed) for _, seed in grid]), jnp.asarray([b for b, _ in grid], jnp.float32)
+
+
+def timed_sweep(config, seeds: int, cpu_devices: int) -> dict:
+    """In a fresh process whose CPU is split into ``cpu_devices`` devices (the flag must precede JAX's
+    start), the compile and run seconds of the sharded, vmapped sweep."""
+    script = (f"import json, sys; sys.path.insert(0, {str(pathlib.Path(__file__).parent)!r}); import moiq_speed; "
+              f"print(json.dumps(moiq_speed.sweep_in_this_process({config.total_steps}, {seeds}, {cpu_devices})))")
+    env = {k: v for k, v in os.environ.items() if k != "XLA_FLAGS"}
+    out = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True, check=True)
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def sweep_in_this_process(steps: int, seeds: int, cpu_devices: int) -> dict:
+    moiq_train.split_cpu_into_devices(cpu_devices)
+    config = tuned("cdst").replace(total_steps=steps, eval_interval=min(steps, 5_000))
+    trainer = moiq_train.make_train(config, moiq_train.load_demonstrations(config))
+    keys, betas = moiq_train.shard_runs(*sweep_grid(config, seeds))
+    swept, compile_seconds = compiled(jax.vmap(trainer.train), keys, betas)
+    return {"devices": jax.device_count(), "compile": compile_seconds, "run": timed(swept, keys, betas)}
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=10_000, help="env steps per expert of the timed runs")
     parser.add_argument("--seeds", type=int, default=5, help="seeds per beta in the sweep comparison")
     parser.add_argument("--expert-steps", type=int, default=100_000, help="step limit of the time-to-expert run")
+    parser.add_argument("--cpu-devices", type=int, default=None,
+                        help="devices the CPU is split into for the sweep (default: one per run, as `moiq sweep`)")
     args = parser.parse_args()
 
     config = tuned("cdst").replace(total_steps=args.steps, eval_interval=min(args.steps, 5_000))
     demos = moiq_train.load_demonstrations(config)
     num_experts = len(config.preferences)
-    print(f"{platform.processor() or platform.machine()}, {jax.device_count()} {jax.default_backend()} device(s); "
-          f"cdst, {num_experts} experts, hidden {config.hidden_sizes}, batch {config.batch_size}+{config.batch_size} "
-          f"per expert, {config.num_envs} envs per expert")
+    print(f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, {jax.device_count()} "
+          f"{jax.default_backend()} device(s); cdst, {num_experts} experts, hidden {config.hidden_sizes}, batch "
+          f"{config.batch_size}+{config.batch_size} per expert, {config.num_envs} envs per expert")
 
     trainer = moiq_train.make_train(config, demos)
     key, beta = jax.random.PRNGKey(0), jnp.float32(config.beta)
@@ -91,23 +125,20 @@ def main() -> None:
           f"{updates / seconds:,.0f} updates/s ({1e3 * seconds / updates:.2f} ms per update incl. env steps and "
           f"evaluations; {args.steps} steps per expert in {seconds:.1f} s, compile {compile_single:.1f} s)")
 
-    grid = list(itertools.product([config.beta, 0.0], range(args.seeds)))
-    keys = jnp.stack([jax.random.PRNGKey(seed) for _, seed in grid])
-    betas = jnp.asarray([b for b, _ in grid], jnp.float32)
-    swept, compile_sweep = compiled(jax.vmap(trainer.train), keys, betas)
-    sweep_seconds = timed(swept, keys, betas)
+    keys, betas = sweep_grid(config, args.seeds)
+    runs = len(betas)
     sequential_seconds = sum(timed(single, k, b) for k, b in zip(keys, betas))
-    print(f"sweep of {len(grid)} runs (betas {config.beta:g}, 0 x {args.seeds} seeds): vmapped {sweep_seconds:.1f} s "
-          f"(compile {compile_sweep:.1f} s) vs one after another {sequential_seconds:.1f} s: "
-          f"{sequential_seconds / sweep_seconds:.2f}x faster")
-    separate = sequential_seconds + len(grid) * compile_single  # as separate train(config) calls: a compile each
-    print(f"with compilation: sweep {sweep_seconds + compile_sweep:.1f} s vs {len(grid)} separate runs, each compiled "
-          f"as a train(config) call compiles ({len(grid)} x {compile_single:.1f} s added), {separate:.1f} s: "
-          f"{separate / (sweep_seconds + compile_sweep):.2f}x faster")
+    sweep = timed_sweep(config, args.seeds, args.cpu_devices or runs)
+    print(f"sweep of {runs} runs (betas {config.beta:g}, 0 x {args.seeds} seeds): vmapped, CPU split into "
+          f"{sweep['devices']} devices, {sweep['run']:.1f} s (compile {sweep['compile']:.1f} s) vs one after another "
+          f"on JAX's default CPU device {sequential_seconds:.1f} s: {sequential_seconds / sweep['run']:.2f}x faster")
+    separate = sequential_seconds + runs * compile_single  # as separate train(config) calls: a compile each
+    print(f"with compilation: sweep {sweep['run'] + sweep['compile']:.1f} s vs {runs} separate runs, each compiled "
+          f"as a train(config) call compiles ({runs} x {compile_single:.1f} s added), {separate:.1f} s: "
+          f"{separate / (sweep['run'] + sweep['compile']):.2f}x faster")
     flops = update_flops(config, trainer.init(key).learner)
     print(f"one update: {flops / 1e6:.0f} MFLOP (XLA's count); updates alone ran at {flops * updates / seconds / 1e9:.1f} "
-          f"GFLOP/s in one run and {flops * updates * len(grid) / sweep_seconds / 1e9:.1f} GFLOP/s in the sweep "
-          f"(a sweep can only gain what one run leaves of the cores idle)")
+          f"GFLOP/s in one run and {flops * updates * runs / sweep['run'] / 1e9:.1f} GFLOP/s in the sweep")
 
     target = (expert_returns(np.asarray(config.preferences)) * np.asarray(config.preferences)).sum(1)
     reached = lambda metrics: np.allclose(metrics["eval_scalar_return"], target, atol=1e-3)

@@ -69,6 +69,7 @@ def main() -> None:
     args = parser.parse_args()
     out = pathlib.Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
+    moiq_train.split_cpu_into_devices(args.seeds)  # one CPU device per seed: both sweeps (2 x seeds, seeds runs) shard
 
     config = tuned("cdst").replace(total_steps=args.steps)
     methods = (f"MOIQ beta={config.beta:g}", "MOIQ beta=0", "IQ-Learn")

@@ -89,6 +89,7 @@ def main() -> None:
     parser.add_argument("--reuse", metavar="PICKLE", help="load the trained sweep from this file instead of training")
     parser.add_argument("--save", metavar="PICKLE", help="save the trained sweep's best parameters to this file")
     args = parser.parse_args()
+    moiq_train.split_cpu_into_devices(args.seeds)  # one CPU device per run
     config = tuned("cdst")
     demos = moiq_train.load_demonstrations(config)
     if args.reuse:

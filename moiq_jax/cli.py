@@ -185,10 +185,14 @@ def _print_returns_against_experts(config: Config, result) -> None:
 
 
 def _run_sweep(config: Config, betas, seeds, out_dir: str) -> None:
-    """Train every (beta, seed) as one vmapped program; write each run's config.json and metrics.csv to
+    """Train every (beta, seed) as one vmapped program, one CPU device per run
+    (``moiq_train.split_cpu_into_devices``); write each run's config.json and metrics.csv to
     ``out_dir/beta<b>-seed<s>`` (so `moiq plot` reads them) and print final and best returns per run."""
     import moiq_jax
+    from moiq_jax.algos.moiq_train import split_cpu_into_devices
     from moiq_jax.runlog import RunLog
+
+    split_cpu_into_devices(len(betas) * len(seeds))
 
     result = moiq_jax.sweep(config, beta=betas, seed=seeds)
     history = result["history"]

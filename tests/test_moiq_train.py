@@ -75,10 +75,13 @@ def test_sweep_equals_separate_runs(demos, swept):
 
 def test_sweep_sharded_over_two_host_devices_matches(swept):
     script = (
-        f"import jax, moiq_jax; from moiq_jax import Config; assert jax.device_count() == 2; "
-        f"s = moiq_jax.sweep({TINY!r}, beta=[0.0, 5.0], seed=[3]); print(s['history']['critic_loss'].tolist())"
+        "import jax, moiq_jax; from moiq_jax import Config; from moiq_jax.algos import moiq_train; "
+        "moiq_train.split_cpu_into_devices(2); assert jax.device_count() == 2; "
+        f"s = moiq_jax.sweep({TINY!r}, beta=[0.0, 5.0], seed=[3]); "
+        "assert len(jax.tree_util.tree_leaves(s['best_params'])[0].sharding.device_set) == 2; "
+        "print(s['history']['critic_loss'].tolist())"
     )
-    env = {**os.environ, "XLA_FLAGS": "--xla_force_host_platform_device_count=2", "PYTHONPATH": os.getcwd()}
+    env = {**{k: v for k, v in os.environ.items() if k != "XLA_FLAGS"}, "PYTHONPATH": os.getcwd()}
     out = subprocess.run([sys.executable, "-c", script], check=False, env=env, capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stderr[-2000:]
     sharded = np.array(eval(out.stdout.strip().splitlines()[-1]))
