@@ -1,15 +1,20 @@
-"""Does MOIQ's vector critic support transfer by generalised policy improvement (GPI)? For each of the 19
-transfer preferences w, act with the candidate action (the actor's at each expert preference w_i) whose best
-``w . min_k Q_k(s, a, w_j)`` over the experts' critics is highest, and compare with the actor's own policy at w.
+"""Three ways to act at the 19 transfer preferences w with one trained MOIQ model on cdst, against the exact
+front: the actor's own policy pi(. | s, w) (the paper's), and two that use the learned reward instead.
 
-GPI would pick, for every w, the best of the experts' policies if ``Q(s, a, w_j)`` were the vector value of
-expert j's policy under one common reward; on cdst that is the Pareto-optimal return for the 16 of the 19
-preferences whose optimum some expert showed.
+- GPI (generalised policy improvement over the experts' policies): act with the candidate action (the
+  actor's at each expert preference w_j) whose ``max_j min_k w . Q_k(s, a, w_j)`` is highest.
+- Selection by the consensus reward: roll out the actor at every transfer and expert preference, score each
+  trajectory by the discounted sum of the consensus reward (the experts' mean recovered vector reward), and
+  act at w as the rollout with the highest ``w . score``.
 
-    PYTHONPATH=. python experiments/cdst_gpi_transfer.py [--seeds 5] [--save PICKLE | --reuse PICKLE]
+Both would give, for every w, the best behaviour on offer if the experts' recovered rewards were one common
+reward equal (up to scale) to the true one; on cdst that is the Pareto-optimal return for the 16 of the 19
+preferences whose optimum some expert showed. They measure how far the learned reward is from that.
+
+    PYTHONPATH=. python experiments/cdst_transfer_methods.py [--seeds 5] [--save PICKLE | --reuse PICKLE]
 
 Trains ``tuned("cdst")`` (100K env steps per expert) for the seeds as one sweep, then prints per seed the
-Pareto-optimal counts of both policies and every preference's vector returns.
+Pareto-optimal counts of the three and every preference's vector returns.
 """
 
 from __future__ import annotations
