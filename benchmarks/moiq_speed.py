@@ -75,6 +75,11 @@ def num_updates(config) -> int:
     return ready * config.updates_per_step
 
 
+def timed_config(steps: int):
+    """The tuned cdst config of the timed runs: ``steps`` env steps per expert."""
+    return tuned("cdst").replace(total_steps=steps, eval_interval=min(steps, 5_000))
+
+
 def sweep_grid(config, seeds: int) -> tuple[jax.Array, jax.Array]:
     """Keys and betas of the sweep: {the tuned beta, 0} x ``seeds`` seeds."""
     grid = list(itertools.product([config.beta, 0.0], range(seeds)))
@@ -93,7 +98,7 @@ def timed_sweep(config, seeds: int, cpu_devices: int) -> dict:
 
 def sweep_in_this_process(steps: int, seeds: int, cpu_devices: int) -> dict:
     moiq_train.split_cpu_into_devices(cpu_devices)
-    config = tuned("cdst").replace(total_steps=steps, eval_interval=min(steps, 5_000))
+    config = timed_config(steps)
     trainer = moiq_train.make_train(config, moiq_train.load_demonstrations(config))
     keys, betas = moiq_train.shard_runs(*sweep_grid(config, seeds))
     swept, compile_seconds = compiled(jax.vmap(trainer.train), keys, betas)
@@ -109,7 +114,7 @@ def main() -> None:
                         help="devices the CPU is split into for the sweep (default: one per run, as `moiq sweep`)")
     args = parser.parse_args()
 
-    config = tuned("cdst").replace(total_steps=args.steps, eval_interval=min(args.steps, 5_000))
+    config = timed_config(args.steps)
     demos = moiq_train.load_demonstrations(config)
     num_experts = len(config.preferences)
     print(f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, {jax.device_count()} "
