@@ -38,7 +38,7 @@ def main() -> None:
     args = parser.parse_args()
     out = pathlib.Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    episodes = 2 if args.quick else args.episodes
+    episodes = 1 if args.quick else args.episodes
     preferences = preference_sweep(19)
 
     rows, summary = [], {}

@@ -50,8 +50,8 @@ def moiq_config(env: str, quick: bool = False, **changes) -> Config:
     config = tuned(env, demos=str(DEMOS / f"{env}.npz"), total_steps=499_200, num_envs=16, updates_per_step=16,
                    learning_starts=4_992, eval_interval=4_992, eval_episodes=10, buffer_size=499_200)
     if quick:
-        config = config.replace(total_steps=64, eval_interval=32, learning_starts=16, buffer_size=64,
-                                hidden_sizes=(16, 16), batch_size=16, updates_per_step=1, eval_episodes=2)
+        config = config.replace(total_steps=64, eval_interval=64, learning_starts=16, buffer_size=64,
+                                hidden_sizes=(16, 16), batch_size=16, updates_per_step=1, eval_episodes=1)
     return config.replace(**changes)
 
 
