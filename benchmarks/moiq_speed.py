@@ -31,7 +31,6 @@ import time
 import jax
 import jax.numpy as jnp
 import numpy as np
-import optax
 
 from moiq_jax.algos import moiq, moiq_train
 from moiq_jax.config import tuned
@@ -54,8 +53,7 @@ def timed(program, *args):
 def update_flops(config, learner) -> float:
     """XLA's floating-point operation count of one MOIQ update (all experts) at ``config``'s sizes."""
     nets = moiq.networks_for(learner.params)
-    optimisers = moiq.Optimisers(optax.adam(config.critic_lr), optax.adam(config.actor_lr), optax.adam(config.alpha_lr))
-    hyper = moiq.Hyper(config.gamma, config.alpha_reg, -float(nets.actor.action_size), config.use_target)
+    optimisers, hyper = moiq_train.update_settings(config, nets.actor.action_size)
     num_experts, rows = len(config.preferences), 2 * config.batch_size
     obs, action = moiq.observation_size(learner.params), nets.actor.action_size
     batches = {"obs": jnp.zeros((num_experts, rows, obs)), "action": jnp.zeros((num_experts, rows, action)),

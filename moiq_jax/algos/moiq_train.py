@@ -96,6 +96,13 @@ def _expert_transitions(demos: Demonstrations) -> dict:
 TRANSITION_FIELDS = ("obs", "action", "next_obs", "done")  # what the inverse-RL losses see of a transition
 
 
+def update_settings(config: Config, action_size: int) -> tuple[moiq.Optimisers, moiq.Hyper]:
+    """The optimisers and hyperparameters of ``moiq.update`` that ``config`` sets (the target entropy is
+    minus the action size, as in SAC)."""
+    optimisers = moiq.Optimisers(optax.adam(config.critic_lr), optax.adam(config.actor_lr), optax.adam(config.alpha_lr))
+    return optimisers, moiq.Hyper(config.gamma, config.alpha_reg, -float(action_size), config.use_target)
+
+
 def make_train(config: Config, demos: Demonstrations | None = None) -> Trainer:
     """Build the pure training functions for ``config`` (``algo`` "moiq", "iq_learn", "sac" or "gail")."""
     config.validate()
@@ -115,8 +122,7 @@ def make_train(config: Config, demos: Demonstrations | None = None) -> Trainer:
     critic_objective = sac.critic_loss if experts or adversarial else moiq.critic_loss
     rollout_env = VmapWrapper(AutoReset(env), config.num_envs)
     nets = moiq.networks_of_sizes(config.hidden_sizes, env.reward_dim, env.action_size, config.action_scale)
-    optimisers = moiq.Optimisers(optax.adam(config.critic_lr), optax.adam(config.actor_lr), optax.adam(config.alpha_lr))
-    hyper = moiq.Hyper(config.gamma, config.alpha_reg, -float(env.action_size), config.use_target)
+    optimisers, hyper = update_settings(config, env.action_size)
     discriminator = gail.Discriminator(config.hidden_sizes)
     disc_optimiser = optax.adam(config.disc_lr)
     iterations_per_chunk = config.eval_interval // config.num_envs
