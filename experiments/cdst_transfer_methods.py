@@ -11,9 +11,9 @@ Both would give, for every w, the best behaviour on offer if the experts' recove
 reward equal (up to scale) to the true one; on cdst that is the Pareto-optimal return for the 16 of the 19
 preferences whose optimum some expert showed. They measure how far the learned reward is from that.
 
-    PYTHONPATH=. python experiments/cdst_transfer_methods.py [--seeds 5] [--save PICKLE | --reuse PICKLE]
+    PYTHONPATH=. python experiments/cdst_transfer_methods.py [--seeds 5] [--beta B] [--save PICKLE | --reuse PICKLE]
 
-Trains ``tuned("cdst")`` (100K env steps per expert) for the seeds as one sweep, then prints per seed the
+Trains ``tuned("cdst")`` (at ``--beta`` if given; 100K env steps per expert) for the seeds as one sweep, then prints per seed the
 Pareto-optimal counts of the three and every preference's vector returns.
 """
 
@@ -91,11 +91,12 @@ def selected_by_consensus(params, env, preferences, expert_preferences, gamma) -
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=5)
+    parser.add_argument("--beta", type=float, default=None, help="consensus weight (default: the tuned cdst one)")
     parser.add_argument("--reuse", metavar="PICKLE", help="load the trained sweep from this file instead of training")
     parser.add_argument("--save", metavar="PICKLE", help="save the trained sweep's best parameters to this file")
     args = parser.parse_args()
     moiq_train.split_cpu_into_devices(args.seeds)  # one CPU device per run
-    config = tuned("cdst")
+    config = tuned("cdst") if args.beta is None else tuned("cdst", beta=args.beta)
     demos = moiq_train.load_demonstrations(config)
     if args.reuse:
         best_params = pickle.loads(pathlib.Path(args.reuse).read_bytes())
