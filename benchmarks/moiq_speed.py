@@ -11,6 +11,8 @@ runs one after another, and the wall time until the policy reaches the experts' 
   one compiled single-run program on JAX's default single CPU device, in this process; both timed after
   compilation, compile times printed too; then both with compilation, counting one compile per separate run
   (each ``train(config)`` call compiles its own program).
+- FLOP rate: XLA's count of one update's floating-point operations turned into GFLOP/s of the single run
+  and of the sweep, beside a large matrix product's rate on the same cores (the most they give).
 - Time to expert return: ``moiq_jax.train`` (compile included) until an evaluation in which every expert's
   deterministic policy gets exactly its expert's scalarised return, or ``--expert-steps`` steps.
 """
@@ -64,6 +66,15 @@ def update_flops(config, learner) -> float:
     cost = jax.jit(step).lower(learner, batches=batches, preferences=jnp.asarray(config.preferences),
                                beta=jnp.float32(config.beta), key=jax.random.PRNGKey(0)).compile().cost_analysis()
     return (cost[0] if isinstance(cost, list) else cost)["flops"]
+
+
+def matmul_gflops(size: int = 2048, repeats: int = 10) -> float:
+    """GFLOP/s of a large float32 matrix product on JAX's default device: what this machine's cores give
+    at best, the yardstick for the updates' small products."""
+    a = jnp.ones((size, size), jnp.float32)
+    program, _ = compiled(lambda x: x @ x, a)
+    seconds = min(timed(program, a) for _ in range(repeats))
+    return 2 * size**3 / seconds / 1e9
 
 
 def num_updates(config) -> int:
@@ -140,8 +151,11 @@ def main() -> None:
           f"as a train(config) call compiles ({runs} x {compile_single:.1f} s added), {separate:.1f} s: "
           f"{separate / (sweep['run'] + sweep['compile']):.2f}x faster")
     flops = update_flops(config, trainer.init(key).learner)
-    print(f"one update: {flops / 1e6:.0f} MFLOP (XLA's count); updates alone ran at {flops * updates / seconds / 1e9:.1f} "
-          f"GFLOP/s in one run and {flops * updates * runs / sweep['run'] / 1e9:.1f} GFLOP/s in the sweep")
+    single_rate, sweep_rate, peak = flops * updates / seconds / 1e9, flops * updates * runs / sweep["run"] / 1e9, matmul_gflops()
+    print(f"one update: {flops / 1e6:.0f} MFLOP (XLA's count); updates ran at {single_rate:.1f} GFLOP/s in one run and "
+          f"{sweep_rate:.1f} GFLOP/s in the sweep, against {peak:.0f} GFLOP/s of a 2048x2048 float32 matrix product "
+          f"here ({100 * single_rate / peak:.0f}% and {100 * sweep_rate / peak:.0f}%; a 3x sweep needs "
+          f"{100 * 3 * single_rate / peak:.0f}%)")
 
     target = (expert_returns(np.asarray(config.preferences)) * np.asarray(config.preferences)).sum(1)
     reached = lambda metrics: np.allclose(metrics["eval_scalar_return"], target, atol=1e-3)
