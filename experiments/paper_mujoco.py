@@ -73,6 +73,7 @@ def task_sweep(env: str, args, name: str = "moiq", config: Config | None = None,
     """The ``betas`` x seed sweep ``name`` of ``env`` (``moiq_train.sweep``'s result plus ``config`` and
     ``seconds``; ``config`` defaults to ``moiq_config``), loaded from the cache when a run with the same
     config and seeds is there, else trained and cached."""
+    moiq_train.use_compilation_cache()  # each seed's evaluation, and every rerun, loads the same programs
     config = moiq_config(env, args.quick) if config is None else config
     seeds = list(range(2 if args.quick else args.seeds))
     cache = pathlib.Path(args.cache) / ("quick" if args.quick else "")

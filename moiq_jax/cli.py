@@ -431,6 +431,9 @@ def main(argv: list[str] | None = None) -> int:
     from moiq_jax.runner import TrainingDiverged
 
     args = build_parser().parse_args(argv)
+    from moiq_jax.algos.moiq_train import use_compilation_cache
+
+    use_compilation_cache()  # reruns load their programs instead of compiling them
     try:
         return args.func(args)
     except (ValueError, FileNotFoundError) as err:

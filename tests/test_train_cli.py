@@ -94,6 +94,26 @@ def test_divergence_stops_with_the_step_and_keeps_the_last_good_checkpoint(tmp_p
     assert all(np.all(np.isfinite(x)) for x in jax.tree.leaves(state.learner.params))
 
 
+def test_a_rerun_loads_its_programs_from_the_compilation_cache(tmp_path):
+    env = {k: v for k, v in os.environ.items() if k != "JAX_COMPILATION_CACHE_DIR"}
+
+    def train(name, cache):
+        out = subprocess.run([MOIQ, "train", *FLAGS, "--total-steps", "600", "--run-dir", str(tmp_path / name)],
+                             env={**env, "HOME": str(tmp_path / "home"), "MOIQ_COMPILATION_CACHE": cache},
+                             check=False, capture_output=True, text=True, timeout=300)
+        assert out.returncode == 0, out.stderr
+        return (tmp_path / name / "metrics.csv").read_text()
+
+    cache = tmp_path / "xla"
+    first = train("first", str(cache))
+    entries = sorted(p.name for p in cache.iterdir())
+    assert any(name.endswith("-cache") for name in entries)  # the first run stored its programs
+    assert train("second", str(cache)) == first
+    assert sorted(p.name for p in cache.iterdir()) == entries  # the rerun compiled nothing new to store
+    train("off", "")  # an empty MOIQ_COMPILATION_CACHE: no cache, not even the default folder
+    assert not (tmp_path / "home" / ".cache" / "moiq_jax").exists()
+
+
 def moiq(*args):
     return subprocess.run([MOIQ, *args], check=False, capture_output=True, text=True, timeout=120)
 

@@ -318,6 +318,23 @@ def split_cpu_into_devices(count: int | None = None) -> None:
         os.environ["XLA_FLAGS"] = f"{flags} {flag}={count or os.cpu_count() or 1}".strip()
 
 
+def use_compilation_cache(path: str | None = None) -> str | None:
+    """Keep compiled programs on disk (JAX's persistent compilation cache), so that the same program run
+    again, in this process or a later one, is loaded instead of compiled (a cdst ``train``: about 11 s to
+    compile, 3 s to load). ``path`` defaults to ``$MOIQ_COMPILATION_CACHE``, else ``~/.cache/moiq_jax/xla``;
+    an empty ``MOIQ_COMPILATION_CACHE`` turns the cache off. A folder JAX already has
+    (``JAX_COMPILATION_CACHE_DIR``) is kept. Call before the first compilation; returns the folder in use."""
+    if jax.config.jax_compilation_cache_dir:
+        return jax.config.jax_compilation_cache_dir
+    if path is None:
+        default = os.path.join(os.path.expanduser("~"), ".cache", "moiq_jax", "xla")
+        path = os.environ.get("MOIQ_COMPILATION_CACHE", default)
+    if not path:
+        return None
+    jax.config.update("jax_compilation_cache_dir", path)
+    return path
+
+
 def shard_runs(*arrays):
     """``arrays`` (leading axis: runs) placed sharded over the run axis on all devices, when there are
     several and they divide the number of runs; else unchanged."""
