@@ -9,8 +9,9 @@ runs one after another, and the wall time until the policy reaches the experts' 
   program, its runs sharded over ``--cpu-devices`` host devices, by default one per run as ``moiq sweep`` does;
   in a child process, since the split must precede JAX's start) against the same runs one after another with
   one compiled single-run program on JAX's default single CPU device, in this process; both timed after
-  compilation, compile times printed too; then both with compilation, counting one compile per separate run
-  (each ``train(config)`` call compiles its own program).
+  compilation, compile times printed too; then both with compilation: separate runs with JAX's persistent
+  compilation cache, as the ``moiq`` command keeps it (the first compiles, the others load the program;
+  both timed in fresh processes), and without it (each ``train(config)`` call compiles its own program).
 - FLOP rate: XLA's count of one update's floating-point operations turned into GFLOP/s of the single run
   and of the sweep, beside a large matrix product's rate on the same cores (the most they give).
 - Time to expert return: ``moiq_jax.train`` (compile included) until an evaluation in which every expert's
@@ -28,6 +29,7 @@ import pathlib
 import platform
 import subprocess
 import sys
+import tempfile
 import time
 
 import jax
@@ -95,17 +97,28 @@ def sweep_grid(config, seeds: int) -> tuple[jax.Array, jax.Array]:
     return jnp.stack([jax.random.PRNGKey(seed) for _, seed in grid]), jnp.asarray([b for b, _ in grid], jnp.float32)
 
 
-def timed_sweep(config, seeds: int, cpu_devices: int) -> dict:
-    """In a fresh process whose CPU is split into ``cpu_devices`` devices (the flag must precede JAX's
-    start), the compile and run seconds of the sharded, vmapped sweep."""
+def in_child(call: str) -> dict:
+    """``moiq_speed.<call>`` run in a fresh Python process without ``XLA_FLAGS`` (for settings that must
+    precede JAX's start or its first compilation), and the JSON it printed."""
     script = (f"import json, sys; sys.path.insert(0, {str(pathlib.Path(__file__).parent)!r}); import moiq_speed; "
-              f"print(json.dumps(moiq_speed.sweep_in_this_process({config.total_steps}, {seeds}, {cpu_devices})))")
-    env = {k: v for k, v in os.environ.items() if k != "XLA_FLAGS"}
+              f"print(json.dumps(moiq_speed.{call}))")
+    env = {k: v for k, v in os.environ.items() if k not in ("XLA_FLAGS", "JAX_COMPILATION_CACHE_DIR")}
     out = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True, check=True)
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
+def compile_in_this_process(steps: int, cache_dir: str) -> dict:
+    """Seconds to compile the single-run program with JAX's persistent compilation cache in ``cache_dir``
+    (as the ``moiq`` command uses it): a compilation when the folder is new, a load when it holds the program."""
+    moiq_train.use_compilation_cache(cache_dir)
+    config = timed_config(steps)
+    trainer = moiq_train.make_train(config, moiq_train.load_demonstrations(config))
+    return {"compile": compiled(trainer.train, jax.random.PRNGKey(1), jnp.float32(0.0))[1]}
+
+
 def sweep_in_this_process(steps: int, seeds: int, cpu_devices: int) -> dict:
+    """With the CPU split into ``cpu_devices`` devices (call in a fresh process), the compile and run seconds
+    of the sharded, vmapped sweep."""
     moiq_train.split_cpu_into_devices(cpu_devices)
     config = timed_config(steps)
     trainer = moiq_train.make_train(config, moiq_train.load_demonstrations(config))
@@ -142,14 +155,19 @@ def main() -> None:
     keys, betas = sweep_grid(config, args.seeds)
     runs = len(betas)
     sequential_seconds = sum(timed(single, k, b) for k, b in zip(keys, betas))
-    sweep = timed_sweep(config, args.seeds, args.cpu_devices or runs)
+    sweep = in_child(f"sweep_in_this_process({args.steps}, {args.seeds}, {args.cpu_devices or runs})")
     print(f"sweep of {runs} runs (betas {config.beta:g}, 0 x {args.seeds} seeds): vmapped, CPU split into "
           f"{sweep['devices']} devices, {sweep['run']:.1f} s (compile {sweep['compile']:.1f} s) vs one after another "
           f"on JAX's default CPU device {sequential_seconds:.1f} s: {sequential_seconds / sweep['run']:.2f}x faster")
-    separate = sequential_seconds + runs * compile_single  # as separate train(config) calls: a compile each
-    print(f"with compilation: sweep {sweep['run'] + sweep['compile']:.1f} s vs {runs} separate runs, each compiled "
-          f"as a train(config) call compiles ({runs} x {compile_single:.1f} s added), {separate:.1f} s: "
-          f"{separate / (sweep['run'] + sweep['compile']):.2f}x faster")
+    with tempfile.TemporaryDirectory() as cache_dir:
+        cold, warm = (in_child(f"compile_in_this_process({args.steps}, {cache_dir!r})")["compile"] for _ in range(2))
+    swept = sweep["run"] + sweep["compile"]
+    cached = sequential_seconds + cold + (runs - 1) * warm  # `moiq train` calls: the first compiles, the rest load
+    uncached = sequential_seconds + runs * compile_single  # train(config) calls without the cache: a compile each
+    print(f"with compilation: sweep {swept:.1f} s vs {runs} separate runs {cached:.1f} s with JAX's persistent "
+          f"compilation cache as `moiq train` keeps it (the first compiles in {cold:.1f} s, the others load theirs in "
+          f"{warm:.1f} s): {cached / swept:.2f}x faster; without the cache ({runs} x {compile_single:.1f} s of "
+          f"compilation) {uncached:.1f} s: {uncached / swept:.2f}x")
     flops = update_flops(config, trainer.init(key).learner)
     single_rate, sweep_rate, peak = flops * updates / seconds / 1e9, flops * updates * runs / sweep["run"] / 1e9, matmul_gflops()
     print(f"one update: {flops / 1e6:.0f} MFLOP (XLA's count); updates ran at {single_rate:.1f} GFLOP/s in one run and "
