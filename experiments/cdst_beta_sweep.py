@@ -33,6 +33,7 @@ def main() -> None:
     args = parser.parse_args()
     betas = [float(b) for b in args.betas.split(",")]
     moiq_train.split_cpu_into_devices(len(betas) * args.seeds)  # one CPU device per run
+    moiq_train.use_compilation_cache()  # a rerun loads the compiled programs
     changes = {name: ast.literal_eval(value) for name, value in (item.split("=", 1) for item in args.set)}
     config = tuned("cdst", total_steps=args.steps, **changes)
     print("config:", changes, flush=True)

@@ -70,6 +70,7 @@ def main() -> None:
     out = pathlib.Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     moiq_train.split_cpu_into_devices(args.seeds)  # one CPU device per seed: both sweeps (2 x seeds, seeds runs) shard
+    moiq_train.use_compilation_cache()  # a rerun loads the compiled programs
 
     config = tuned("cdst").replace(total_steps=args.steps)
     methods = (f"MOIQ beta={config.beta:g}", "MOIQ beta=0", "IQ-Learn")

@@ -96,6 +96,7 @@ def main() -> None:
     parser.add_argument("--save", metavar="PICKLE", help="save the trained sweep's best parameters to this file")
     args = parser.parse_args()
     moiq_train.split_cpu_into_devices(args.seeds)  # one CPU device per run
+    moiq_train.use_compilation_cache()  # a rerun loads the compiled programs
     config = tuned("cdst") if args.beta is None else tuned("cdst", beta=args.beta)
     demos = moiq_train.load_demonstrations(config)
     if args.reuse:
