@@ -428,11 +428,10 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    from moiq_jax.algos.moiq_train import use_compilation_cache
     from moiq_jax.runner import TrainingDiverged
 
     args = build_parser().parse_args(argv)
-    from moiq_jax.algos.moiq_train import use_compilation_cache
-
     use_compilation_cache()  # reruns load their programs instead of compiling them
     try:
         return args.func(args)
