@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import argparse
 import functools
-import itertools
 import json
 import os
 import pathlib
@@ -93,8 +92,8 @@ def timed_config(steps: int):
 
 def sweep_grid(config, seeds: int) -> tuple[jax.Array, jax.Array]:
     """Keys and betas of the sweep: {the tuned beta, 0} x ``seeds`` seeds."""
-    grid = list(itertools.product([config.beta, 0.0], range(seeds)))
-    return jnp.stack([jax.random.PRNGKey(seed) for _, seed in grid]), jnp.asarray([b for b, _ in grid], jnp.float32)
+    betas, run_seeds = moiq_train.run_grid([config.beta, 0.0], range(seeds))
+    return jnp.stack([jax.random.PRNGKey(int(seed)) for seed in run_seeds]), jnp.asarray(betas)
 
 
 def in_child(call: str) -> dict:

@@ -13,8 +13,8 @@ preferences whose optimum some expert showed. They measure how far the learned r
 
     PYTHONPATH=. python experiments/cdst_transfer_methods.py [--seeds 5] [--beta B] [--save PICKLE | --reuse PICKLE]
 
-Trains ``tuned("cdst")`` (at ``--beta`` if given; 100K env steps per expert) for the seeds as one sweep, then prints per seed the
-Pareto-optimal counts of the three and every preference's vector returns.
+Trains ``tuned("cdst")`` (at ``--beta`` if given; 100K env steps per expert) for the seeds as one sweep,
+then prints per seed the Pareto-optimal counts of the three and every preference's vector returns.
 """
 
 from __future__ import annotations

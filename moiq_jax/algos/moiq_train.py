@@ -346,6 +346,13 @@ def shard_runs(*arrays):
     return jax.device_put(arrays, sharding)
 
 
+def run_grid(betas, seeds) -> tuple[np.ndarray, np.ndarray]:
+    """The runs of a sweep, every (beta, seed) of the product, betas outermost: their betas (float32) and
+    seeds, one entry per run."""
+    grid = list(itertools.product(betas, seeds))
+    return np.asarray([b for b, _ in grid], np.float32), np.asarray([s for _, s in grid])
+
+
 def sweep(config: Config, beta=None, seed=None, demos: Demonstrations | None = None) -> dict:
     """Train every (beta, seed) of the product of the given values as one vmapped, compiled program,
     sharded over the run axis when several devices are present and they divide the number of runs
@@ -354,14 +361,11 @@ def sweep(config: Config, beta=None, seed=None, demos: Demonstrations | None = N
     Returns ``betas``, ``seeds`` (one entry per run), ``history`` (arrays with a leading run axis,
     then the evaluation axis), ``best_return`` and ``best_params`` (leading run axis).
     """
-    betas = [config.beta] if beta is None else list(beta)
-    seeds = [config.seed] if seed is None else list(seed)
-    grid = list(itertools.product(betas, seeds))
-    run_betas = jnp.asarray([b for b, _ in grid], jnp.float32)
-    keys = jax.vmap(jax.random.PRNGKey)(jnp.asarray([s for _, s in grid], jnp.uint32))
+    run_betas, run_seeds = run_grid([config.beta] if beta is None else beta, [config.seed] if seed is None else seed)
+    keys = jax.vmap(jax.random.PRNGKey)(jnp.asarray(run_seeds, jnp.uint32))
     trainer = make_train(config, demos)
-    keys, run_betas = shard_runs(keys, run_betas)
+    keys, run_betas = shard_runs(keys, jnp.asarray(run_betas))
     state, history = jax.jit(jax.vmap(trainer.train))(keys, run_betas)
-    return {"betas": np.asarray(run_betas), "seeds": np.asarray([s for _, s in grid]),
+    return {"betas": np.asarray(run_betas), "seeds": run_seeds,
             "history": jax.device_get(history), "best_return": np.asarray(state.best_return),
             "best_params": state.best_params}
