@@ -12,8 +12,8 @@ runs one after another, and the wall time until the policy reaches the experts' 
   compilation, compile times printed too; then both with compilation: separate runs with JAX's persistent
   compilation cache, as the ``moiq`` command keeps it (the first compiles, the others load the program;
   both timed in fresh processes), and without it (each ``train(config)`` call compiles its own program).
-- Cores: the single run again with its process pinned to one core, so the part of the sweep's speed-up
-  that spreading the runs over the cores alone would give.
+- One core: the single run, and ``--seeds`` runs vmapped, with the process pinned to one core: what
+  spreading the runs over the cores alone would give, and what vmap gives per core.
 - FLOP rate: XLA's count of one update's floating-point operations turned into GFLOP/s of the single run
   and of the sweep, beside a large matrix product's rate on the same cores (the most they give).
 - Time to expert return: ``moiq_jax.train`` (compile included) until an evaluation in which every expert's
@@ -117,16 +117,19 @@ def compile_in_this_process(steps: int, cache_dir: str) -> dict:
     return {"compile": compiled(trainer.train, jax.random.PRNGKey(1), jnp.float32(0.0))[1]}
 
 
-def single_run_on_one_core(steps: int) -> dict:
-    """Run seconds of the single-run program with this process pinned to one core (call in a fresh process,
-    before JAX starts its threads): what one run gets from the second core, and so what spreading separate
-    runs over the cores, without vmap, could give."""
+def on_one_core(steps: int, seeds: int) -> dict:
+    """With this process pinned to one core (call in a fresh process, before JAX starts its threads): run
+    seconds of the single-run program, and of ``seeds`` runs as one vmapped program. The first says what one
+    run gets from the other cores (so what spreading separate runs over the cores alone could give), the second
+    what vmap gains per core."""
     os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})
     config = timed_config(steps)
     trainer = moiq_train.make_train(config, moiq_train.load_demonstrations(config))
     key, beta = jax.random.PRNGKey(0), jnp.float32(config.beta)
     program, _ = compiled(trainer.train, key, beta)
-    return {"run": timed(program, key, beta)}
+    keys, betas = jnp.stack([jax.random.PRNGKey(seed) for seed in range(seeds)]), jnp.full((seeds,), beta)
+    swept, _ = compiled(jax.vmap(trainer.train), keys, betas)
+    return {"run": timed(program, key, beta), "vmapped": timed(swept, keys, betas)}
 
 
 def sweep_in_this_process(steps: int, seeds: int, cpu_devices: int) -> dict:
@@ -181,11 +184,13 @@ def main() -> None:
           f"compilation cache as `moiq train` keeps it (the first compiles in {cold:.1f} s, the others load theirs in "
           f"{warm:.1f} s): {cached / swept:.2f}x faster; without the cache ({runs} x {compile_single:.1f} s of "
           f"compilation) {uncached:.1f} s: {uncached / swept:.2f}x")
-    one_core = in_child(f"single_run_on_one_core({args.steps})")["run"]
+    one_core = in_child(f"on_one_core({args.steps}, {args.seeds})")
     cores = len(os.sched_getaffinity(0))
-    print(f"one run pinned to one core: {one_core:.1f} s against {seconds:.1f} s on all {cores}; the {runs} runs spread "
-          f"one per core at that pace, without vmap, would be {cores * seconds / one_core:.2f}x faster than one after "
-          f"another (the vmapped sweep: {sequential_seconds / sweep['run']:.2f}x)")
+    print(f"one core: one run {one_core['run']:.1f} s against {seconds:.1f} s on all {cores} (the {runs} runs spread "
+          f"one per core at that pace, without vmap, would be {cores * seconds / one_core['run']:.2f}x faster than one "
+          f"after another; the vmapped sweep: {sequential_seconds / sweep['run']:.2f}x); {args.seeds} runs vmapped "
+          f"{one_core['vmapped']:.1f} s against {args.seeds * one_core['run']:.1f} s one after another: "
+          f"{args.seeds * one_core['run'] / one_core['vmapped']:.2f}x from vmap per core")
     flops = update_flops(config, trainer.init(key).learner)
     single_rate, sweep_rate, peak = flops * updates / seconds / 1e9, flops * updates * runs / sweep["run"] / 1e9, matmul_gflops()
     print(f"one update: {flops / 1e6:.0f} MFLOP (XLA's count); updates ran at {single_rate:.1f} GFLOP/s in one run and "
