@@ -5,7 +5,9 @@ front: the actor's own policy pi(. | s, w) (the paper's), and two that use the l
   actor's at each expert preference w_j) whose ``max_j min_k w . Q_k(s, a, w_j)`` is highest.
 - Selection by the consensus reward: roll out the actor at every transfer and expert preference, score each
   trajectory by the discounted sum of the consensus reward (the experts' mean recovered vector reward), and
-  act at w as the rollout with the highest ``w . score``.
+  act at w as the rollout with the highest ``w . score``; and the same among the rollouts at the experts'
+  preferences alone (the experts' behaviours: with a reward that ranks them right this gets the most that
+  imitating them can, 16 of 19).
 
 Both would give, for every w, the best behaviour on offer if the experts' recovered rewards were one common
 reward equal (up to scale) to the true one; on cdst that is the Pareto-optimal return for the 16 of the 19
@@ -62,12 +64,13 @@ def gpi_returns(params, env, preferences, expert_preferences) -> np.ndarray:
     return np.asarray(jax.jit(jax.vmap(one))(jnp.asarray(preferences, jnp.float32)))
 
 
-def selected_by_consensus(params, env, preferences, expert_preferences, gamma) -> np.ndarray:
-    """True vector returns ``[P, d]`` of the rollout, among the actor's at ``preferences`` and the experts',
-    whose discounted consensus-reward return scalarised by each preference is highest."""
+def selected_by_consensus(params, env, preferences, expert_preferences, gamma, experts_only=False) -> np.ndarray:
+    """True vector returns ``[P, d]`` of the rollout, among the actor's at ``preferences`` and the experts'
+    (or at the experts' alone), whose discounted consensus-reward return scalarised by each preference is highest."""
     nets = networks_for(params)
     alpha = jnp.mean(jnp.exp(params.log_alpha))  # cdst's tuned temperature is fixed and shared
-    family = jnp.concatenate([jnp.asarray(preferences, jnp.float32), expert_preferences])
+    family = expert_preferences if experts_only else jnp.concatenate([jnp.asarray(preferences, jnp.float32),
+                                                                      expert_preferences])
 
     def rollout(w):
         def step(state, _):
@@ -113,16 +116,19 @@ def main() -> None:
     preferences = cdst_moiq.TRANSFER_PREFERENCES
     optimal = np.stack([cdst_moiq.optimal_for(front, w) for w in preferences])
     expert_preferences = jnp.asarray(demos.preferences, jnp.float32)
-    print(f"beta {config.beta:g}; columns: preference, return of the actor, of GPI, of selection by consensus reward; "
-          "Pareto-optimal return")
+    print(f"beta {config.beta:g}; columns: preference, return of the actor, of GPI, of selection by consensus reward "
+          "among all rollouts and among the experts' behaviours; Pareto-optimal return")
     for seed in range(args.seeds):
         params = cdst_moiq.run_index(best_params, seed)
         direct = moiq_jax.evaluate(params, env, preferences)
         gpi = gpi_returns(params, env, preferences, expert_preferences)
         selected = selected_by_consensus(params, env, preferences, expert_preferences, config.gamma)
-        hits = [int(np.all(np.isclose(x, optimal, atol=1e-3), axis=1).sum()) for x in (direct, gpi, selected)]
-        print(f"seed {seed}: Pareto-optimal of 19: actor {hits[0]}, GPI {hits[1]}, selected by consensus reward {hits[2]}")
-        for row in zip(preferences, direct, gpi, selected, optimal):
+        among_experts = selected_by_consensus(params, env, preferences, expert_preferences, config.gamma, True)
+        hits = [int(np.all(np.isclose(x, optimal, atol=1e-3), axis=1).sum())
+                for x in (direct, gpi, selected, among_experts)]
+        print(f"seed {seed}: Pareto-optimal of 19: actor {hits[0]}, GPI {hits[1]}, selected by consensus reward "
+              f"{hits[2]}, among the experts' behaviours {hits[3]}")
+        for row in zip(preferences, direct, gpi, selected, among_experts, optimal):
             print("  " + " ".join(str(np.round(x, 2)) for x in row))
 
 
