@@ -53,14 +53,15 @@ def main() -> None:
     expert_vectors = expert_returns(expert_preferences)
     preferences = TRANSFER_PREFERENCES
 
+    references = expert_references(expert_preferences, expert_vectors, preferences)
+
     print("preference, optimum, best expert behaviour, its margin over the next expert behaviour")
-    for w in preferences:
+    for w, best in zip(preferences, references["best expert behaviour"]):
         values = np.sort(expert_vectors @ w)[::-1]
-        print(f"  {np.round(w, 2)} {optimal_for(front, w)} {expert_vectors[np.argmax(expert_vectors @ w)]} "
-              f"{values[0] - values[1]:.3f}")
+        print(f"  {np.round(w, 2)} {optimal_for(front, w)} {best} {values[0] - values[1]:.3f}")
 
     print("of the 19: optimal for the preference, on the front; mean regret")
-    for name, returns in expert_references(expert_preferences, expert_vectors, preferences).items():
+    for name, returns in references.items():
         print(f"  {name}: {summary(scores(returns, front, preferences))}")
     runs = collections.defaultdict(list)
     with open(args.transfer, newline="") as f:
