@@ -1,5 +1,5 @@
-"""Three ways to act at the 19 transfer preferences w with one trained MOIQ model on cdst, against the exact
-front: the actor's own policy pi(. | s, w) (the paper's), and two that use the learned reward instead.
+"""Four ways to act at the 19 transfer preferences w with one trained MOIQ model on cdst, against the exact
+front: the actor's own policy pi(. | s, w) (the paper's), and three that use the learned reward instead.
 
 - GPI (generalised policy improvement over the experts' policies): act with the candidate action (the
   actor's at each expert preference w_j) whose ``max_j min_k w . Q_k(s, a, w_j)`` is highest.
@@ -9,14 +9,14 @@ front: the actor's own policy pi(. | s, w) (the paper's), and two that use the l
   preferences alone (the experts' behaviours: with a reward that ranks them right this gets the most that
   imitating them can, 16 of 19).
 
-Both would give, for every w, the best behaviour on offer if the experts' recovered rewards were one common
+Each would give, for every w, the best behaviour on offer if the experts' recovered rewards were one common
 reward equal (up to scale) to the true one; on cdst that is the Pareto-optimal return for the 16 of the 19
 preferences whose optimum some expert showed. They measure how far the learned reward is from that.
 
     PYTHONPATH=. python experiments/cdst_transfer_methods.py [--seeds 5] [--beta B] [--save PICKLE | --reuse PICKLE]
 
 Trains ``tuned("cdst")`` (at ``--beta`` if given; 100K env steps per expert) for the seeds as one sweep,
-then prints per seed the Pareto-optimal counts of the three and every preference's vector returns.
+then prints per seed the Pareto-optimal counts of the four and every preference's vector returns.
 """
 
 from __future__ import annotations
