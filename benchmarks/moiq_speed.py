@@ -92,6 +92,12 @@ def timed_config(steps: int):
     return tuned("cdst").replace(total_steps=steps, eval_interval=min(steps, 5_000))
 
 
+def timed_trainer(steps: int):
+    """The timed config and its trainer, built from the config's demonstrations (for the child processes)."""
+    config = timed_config(steps)
+    return config, moiq_train.make_train(config, moiq_train.load_demonstrations(config))
+
+
 def sweep_grid(config, seeds: int) -> tuple[jax.Array, jax.Array]:
     """Keys and betas of the sweep: {the tuned beta, 0} x ``seeds`` seeds."""
     betas, run_seeds = moiq_train.run_grid([config.beta, 0.0], range(seeds))
@@ -112,8 +118,7 @@ def compile_in_this_process(steps: int, cache_dir: str) -> dict:
     """Seconds to compile the single-run program with JAX's persistent compilation cache in ``cache_dir``
     (as the ``moiq`` command uses it): a compilation when the folder is new, a load when it holds the program."""
     moiq_train.use_compilation_cache(cache_dir)
-    config = timed_config(steps)
-    trainer = moiq_train.make_train(config, moiq_train.load_demonstrations(config))
+    _, trainer = timed_trainer(steps)
     return {"compile": compiled(trainer.train, jax.random.PRNGKey(1), jnp.float32(0.0))[1]}
 
 
@@ -123,8 +128,7 @@ def on_one_core(steps: int, seeds: int) -> dict:
     run gets from the other cores (so what spreading separate runs over the cores alone could give), the second
     what vmap gains per core."""
     os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})
-    config = timed_config(steps)
-    trainer = moiq_train.make_train(config, moiq_train.load_demonstrations(config))
+    config, trainer = timed_trainer(steps)
     key, beta = jax.random.PRNGKey(0), jnp.float32(config.beta)
     program, _ = compiled(trainer.train, key, beta)
     keys, betas = jnp.stack([jax.random.PRNGKey(seed) for seed in range(seeds)]), jnp.full((seeds,), beta)
@@ -136,8 +140,7 @@ def sweep_in_this_process(steps: int, seeds: int, cpu_devices: int) -> dict:
     """With the CPU split into ``cpu_devices`` devices (call in a fresh process), the compile and run seconds
     of the sharded, vmapped sweep."""
     moiq_train.split_cpu_into_devices(cpu_devices)
-    config = timed_config(steps)
-    trainer = moiq_train.make_train(config, moiq_train.load_demonstrations(config))
+    config, trainer = timed_trainer(steps)
     keys, betas = moiq_train.shard_runs(*sweep_grid(config, seeds))
     swept, compile_seconds = compiled(jax.vmap(trainer.train), keys, betas)
     return {"devices": jax.device_count(), "compile": compile_seconds, "run": timed(swept, keys, betas)}
