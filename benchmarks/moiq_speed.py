@@ -23,7 +23,6 @@ runs one after another, and the wall time until the policy reaches the experts' 
 from __future__ import annotations
 
 import argparse
-import functools
 import json
 import os
 import pathlib
@@ -36,10 +35,17 @@ import time
 import jax
 import jax.numpy as jnp
 import numpy as np
+import optax
 
-from moiq_jax.algos import moiq, moiq_train
+import moiq_jax
+from moiq_jax.algos import actor_critic, moiq
+from moiq_jax.algos.offpolicy import make_trainer
 from moiq_jax.config import tuned
 from moiq_jax.experts.cdst_oracle import expert_returns
+from moiq_jax.experts.loading import load_demonstrations
+from moiq_jax.networks import networks_for, observation_size
+from moiq_jax.runtime import shard_runs, split_cpu_into_devices, use_compilation_cache
+from moiq_jax.train import run_grid
 
 
 def compiled(fn, *args):
@@ -57,17 +63,23 @@ def timed(program, *args):
 
 def update_flops(config, learner) -> float:
     """XLA's floating-point operation count of one MOIQ update (all experts) at ``config``'s sizes."""
-    nets = moiq.networks_for(learner.params)
-    optimisers, hyper = moiq_train.update_settings(config, nets.actor.action_size)
-    num_experts, rows = len(config.preferences), 2 * config.batch_size
-    obs, action = moiq.observation_size(learner.params), nets.actor.action_size
+    c = config.offpolicy
+    nets = networks_for(learner.params)
+    optimisers = actor_critic.Optimisers(optax.adam(c.critic_lr), optax.adam(c.actor_lr), optax.adam(c.alpha_lr))
+    settings = actor_critic.Settings(-float(nets.actor.action_size), c.tau, c.learn_alpha)
+    num_experts, rows = len(config.preferences), 2 * c.batch_size
+    obs, action = observation_size(learner.params), nets.actor.action_size
     batches = {"obs": jnp.zeros((num_experts, rows, obs)), "action": jnp.zeros((num_experts, rows, action)),
                "next_obs": jnp.zeros((num_experts, rows, obs)), "done": jnp.zeros((num_experts, rows)),
-               "is_expert": jnp.tile(jnp.arange(rows) < config.batch_size, (num_experts, 1))}
-    step = functools.partial(moiq.update, nets=nets, optimisers=optimisers, hyper=hyper, tau=config.tau,
-                             learn_alpha=config.learn_alpha)
+               "is_expert": jnp.tile(jnp.arange(rows) < c.batch_size, (num_experts, 1))}
+    loss = moiq.ALGORITHM.critic_loss(config)
+
+    def step(learner, batches, preferences, beta, key):
+        objective = lambda critic, params, b, p, k: loss(critic, nets, params, b, p, {"beta": beta}, k)
+        return actor_critic.update(learner, nets, optimisers, batches, preferences, key, settings, objective)
+
     cost = jax.jit(step).lower(learner, batches=batches, preferences=jnp.asarray(config.preferences),
-                               beta=jnp.float32(config.beta), key=jax.random.PRNGKey(0)).compile().cost_analysis()
+                               beta=jnp.float32(config.moiq.beta), key=jax.random.PRNGKey(0)).compile().cost_analysis()
     return (cost[0] if isinstance(cost, list) else cost)["flops"]
 
 
@@ -82,9 +94,10 @@ def matmul_gflops(size: int = 2048, repeats: int = 10) -> float:
 
 def num_updates(config) -> int:
     """Gradient updates of one run: ``updates_per_step`` per vectorised env step once warm-up is over."""
-    iterations = config.total_steps // config.num_envs
-    ready = sum((i + 1) * config.num_envs > config.learning_starts for i in range(iterations))
-    return ready * config.updates_per_step
+    c = config.offpolicy
+    iterations = c.total_steps // c.num_envs
+    ready = sum((i + 1) * c.num_envs > c.learning_starts for i in range(iterations))
+    return ready * c.updates_per_step
 
 
 def timed_config(steps: int):
@@ -95,13 +108,18 @@ def timed_config(steps: int):
 def timed_trainer(steps: int):
     """The timed config and its trainer, built from the config's demonstrations (for the child processes)."""
     config = timed_config(steps)
-    return config, moiq_train.make_train(config, moiq_train.load_demonstrations(config))
+    return config, make_trainer(config, moiq.ALGORITHM, load_demonstrations(config))
 
 
-def sweep_grid(config, seeds: int) -> tuple[jax.Array, jax.Array]:
-    """Keys and betas of the sweep: {the tuned beta, 0} x ``seeds`` seeds."""
-    betas, run_seeds = moiq_train.run_grid([config.beta, 0.0], range(seeds))
-    return jnp.stack([jax.random.PRNGKey(int(seed)) for seed in run_seeds]), jnp.asarray(betas)
+def hyper(beta) -> dict:
+    """The swept values of a MOIQ program: the consensus weight."""
+    return {"beta": jnp.asarray(beta, jnp.float32)}
+
+
+def sweep_grid(config, seeds: int) -> tuple[jax.Array, dict]:
+    """Keys and hyperparameters of the sweep: {the tuned beta, 0} x ``seeds`` seeds."""
+    runs = run_grid({"beta": [config.moiq.beta, 0.0], "seed": range(seeds)})
+    return jnp.stack([jax.random.PRNGKey(int(seed)) for seed in runs["seed"]]), hyper(runs["beta"])
 
 
 def in_child(call: str) -> dict:
@@ -117,9 +135,9 @@ def in_child(call: str) -> dict:
 def compile_in_this_process(steps: int, cache_dir: str) -> dict:
     """Seconds to compile the single-run program with JAX's persistent compilation cache in ``cache_dir``
     (as the ``moiq`` command uses it): a compilation when the folder is new, a load when it holds the program."""
-    moiq_train.use_compilation_cache(cache_dir)
+    use_compilation_cache(cache_dir)
     _, trainer = timed_trainer(steps)
-    return {"compile": compiled(trainer.train, jax.random.PRNGKey(1), jnp.float32(0.0))[1]}
+    return {"compile": compiled(trainer.train, jax.random.PRNGKey(1), hyper(0.0))[1]}
 
 
 def on_one_core(steps: int, seeds: int) -> dict:
@@ -129,9 +147,9 @@ def on_one_core(steps: int, seeds: int) -> dict:
     what vmap gains per core."""
     os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})
     config, trainer = timed_trainer(steps)
-    key, beta = jax.random.PRNGKey(0), jnp.float32(config.beta)
+    key, beta = jax.random.PRNGKey(0), hyper(config.moiq.beta)
     program, _ = compiled(trainer.train, key, beta)
-    keys, betas = jnp.stack([jax.random.PRNGKey(seed) for seed in range(seeds)]), jnp.full((seeds,), beta)
+    keys, betas = jnp.stack([jax.random.PRNGKey(seed) for seed in range(seeds)]), hyper([config.moiq.beta] * seeds)
     swept, _ = compiled(jax.vmap(trainer.train), keys, betas)
     return {"run": timed(program, key, beta), "vmapped": timed(swept, keys, betas)}
 
@@ -139,9 +157,9 @@ def on_one_core(steps: int, seeds: int) -> dict:
 def sweep_in_this_process(steps: int, seeds: int, cpu_devices: int) -> dict:
     """With the CPU split into ``cpu_devices`` devices (call in a fresh process), the compile and run seconds
     of the sharded, vmapped sweep."""
-    moiq_train.split_cpu_into_devices(cpu_devices)
+    split_cpu_into_devices(cpu_devices)
     config, trainer = timed_trainer(steps)
-    keys, betas = moiq_train.shard_runs(*sweep_grid(config, seeds))
+    keys, betas = shard_runs(*sweep_grid(config, seeds))
     swept, compile_seconds = compiled(jax.vmap(trainer.train), keys, betas)
     return {"devices": jax.device_count(), "compile": compile_seconds, "run": timed(swept, keys, betas)}
 
@@ -156,14 +174,14 @@ def main() -> None:
     args = parser.parse_args()
 
     config = timed_config(args.steps)
-    demos = moiq_train.load_demonstrations(config)
-    num_experts = len(config.preferences)
+    demos = load_demonstrations(config)
+    num_experts, c = len(config.preferences), config.offpolicy
     print(f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, {jax.device_count()} "
-          f"{jax.default_backend()} device(s); cdst, {num_experts} experts, hidden {config.hidden_sizes}, batch "
-          f"{config.batch_size}+{config.batch_size} per expert, {config.num_envs} envs per expert")
+          f"{jax.default_backend()} device(s); cdst, {num_experts} experts, hidden {c.hidden_sizes}, batch "
+          f"{c.batch_size}+{c.batch_size} per expert, {c.num_envs} envs per expert")
 
-    trainer = moiq_train.make_train(config, demos)
-    key, beta = jax.random.PRNGKey(0), jnp.float32(config.beta)
+    trainer = make_trainer(config, moiq.ALGORITHM, demos)
+    key, beta = jax.random.PRNGKey(0), hyper(config.moiq.beta)
     single, compile_single = compiled(trainer.train, key, beta)
     seconds = timed(single, key, beta)
     updates = num_updates(config)
@@ -172,10 +190,11 @@ def main() -> None:
           f"evaluations; {args.steps} steps per expert in {seconds:.1f} s, compile {compile_single:.1f} s)")
 
     keys, betas = sweep_grid(config, args.seeds)
-    runs = len(betas)
-    sequential_seconds = sum(timed(single, k, b) for k, b in zip(keys, betas))
+    runs = len(keys)
+    sequential_seconds = sum(timed(single, keys[r], jax.tree_util.tree_map(lambda x, r=r: x[r], betas))
+                             for r in range(runs))
     sweep = in_child(f"sweep_in_this_process({args.steps}, {args.seeds}, {args.cpu_devices or runs})")
-    print(f"sweep of {runs} runs (betas {config.beta:g}, 0 x {args.seeds} seeds): vmapped, CPU split into "
+    print(f"sweep of {runs} runs (betas {config.moiq.beta:g}, 0 x {args.seeds} seeds): vmapped, CPU split into "
           f"{sweep['devices']} devices, {sweep['run']:.1f} s (compile {sweep['compile']:.1f} s) vs one after another "
           f"on JAX's default CPU device {sequential_seconds:.1f} s: {sequential_seconds / sweep['run']:.2f}x faster")
     with tempfile.TemporaryDirectory() as cache_dir:
@@ -204,7 +223,7 @@ def main() -> None:
     target = (expert_returns(np.asarray(config.preferences)) * np.asarray(config.preferences)).sum(1)
     reached = lambda metrics: np.allclose(metrics["eval_scalar_return"], target, atol=1e-3)
     expert_config = tuned("cdst").replace(total_steps=args.expert_steps)
-    result = moiq_train.train(expert_config, demos, log=None, until=reached)
+    result = moiq_jax.train(expert_config, demos, log=None, until=reached)
     steps = int(result.history["env_steps"][-1])
     if reached({k: v[-1] for k, v in result.history.items()}):
         print(f"time to expert return (all {num_experts} preferences exact): {result.seconds:.1f} s "

@@ -14,13 +14,10 @@ import ast
 import json
 import time
 
-import cdst_moiq
+import common
 import numpy as np
 
 import moiq_jax
-from moiq_jax.algos import moiq_train
-from moiq_jax.config import tuned
-from moiq_jax.experts.cdst_oracle import expert_returns
 
 
 def main() -> None:
@@ -32,23 +29,19 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=100_000, help="env steps per expert")
     args = parser.parse_args()
     betas = [float(b) for b in args.betas.split(",")]
-    moiq_train.split_cpu_into_devices(len(betas) * args.seeds)  # one CPU device per run
-    moiq_train.use_compilation_cache()  # a rerun loads the compiled programs
+    common.start(len(betas) * args.seeds)  # one CPU device per run
     changes = {name: ast.literal_eval(value) for name, value in (item.split("=", 1) for item in args.set)}
-    config = tuned("cdst", total_steps=args.steps, **changes)
+    cdst = common.CdstSetup(total_steps=args.steps, **changes)
     print("config:", changes, flush=True)
-    demos = moiq_train.load_demonstrations(config)
-    preferences = np.asarray(demos.preferences)
-    expert = (expert_returns(preferences) * preferences).sum(1)
+    preferences, expert = cdst.preferences, cdst.expert_scalar
     start = time.perf_counter()
-    swept = moiq_train.sweep(config, beta=betas, seed=range(args.seeds), demos=demos)
-    front = moiq_jax.envs.make("cdst").unwrapped.pareto_front()
-    optimal = np.stack([cdst_moiq.optimal_for(front, w) for w in cdst_moiq.TRANSFER_PREFERENCES])
+    swept = moiq_jax.sweep(cdst.config, beta=betas, seed=range(args.seeds), demos=cdst.demos)
+    optimal = common.transfer_optima()
     summary = {"seconds": time.perf_counter() - start}
-    for run, (beta, seed) in enumerate(zip(swept["betas"], swept["seeds"])):
-        params = cdst_moiq.run_index(swept["best_params"], run)
+    for run, (beta, seed) in enumerate(zip(swept.runs["beta"], swept.runs["seed"])):
+        params = common.run_index(swept.best_params, run)
         scalar = (moiq_jax.evaluate(params, "cdst", preferences) * preferences).sum(1)
-        transfer = moiq_jax.evaluate(params, "cdst", cdst_moiq.TRANSFER_PREFERENCES)
+        transfer = moiq_jax.evaluate(params, "cdst", common.TRANSFER_PREFERENCES)
         hits = int(np.all(np.isclose(transfer, optimal, atol=1e-3), axis=1).sum())
         exact = bool(np.allclose(scalar, expert, atol=1e-3))
         summary[f"{beta}-{seed}"] = {"scalar": np.round(scalar, 2).tolist(), "exact": exact, "transfer": hits}

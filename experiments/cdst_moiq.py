@@ -26,18 +26,11 @@ import matplotlib
 import numpy as np
 
 matplotlib.use("Agg")
+import common
 import matplotlib.pyplot as plt
+from common import TRANSFER_PREFERENCES, optimal_for, run_index
 
 import moiq_jax
-from moiq_jax.algos import moiq_train
-from moiq_jax.config import tuned
-from moiq_jax.experts.cdst_oracle import expert_returns
-
-TRANSFER_PREFERENCES = np.array([[1 - 0.05 * k, 0.05 * k] for k in range(1, 20)])
-
-
-def run_index(params, index):
-    return jax.tree_util.tree_map(lambda x: x[index], params)
 
 
 def best_model_returns(method, swept, preferences) -> np.ndarray:
@@ -54,11 +47,6 @@ def rounded(x) -> list:
     return np.round(np.asarray(x, np.float64), 4).tolist()
 
 
-def optimal_for(front: np.ndarray, preference) -> np.ndarray:
-    """The front point maximising ``preference . return``."""
-    return front[np.argmax(front @ preference)]
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=5)
@@ -69,23 +57,20 @@ def main() -> None:
     args = parser.parse_args()
     out = pathlib.Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    moiq_train.split_cpu_into_devices(args.seeds)  # one CPU device per seed: both sweeps (2 x seeds, seeds runs) shard
-    moiq_train.use_compilation_cache()  # a rerun loads the compiled programs
+    common.start(args.seeds)  # one CPU device per seed: both sweeps (2 x seeds, seeds runs) shard
 
-    config = tuned("cdst").replace(total_steps=args.steps)
-    methods = (f"MOIQ beta={config.beta:g}", "MOIQ beta=0", "IQ-Learn")
-    demos = moiq_train.load_demonstrations(config)
-    preferences = np.asarray(demos.preferences)
-    expert = expert_returns(preferences)
-    expert_scalar = (expert * preferences).sum(1)
+    cdst = common.CdstSetup(total_steps=args.steps)
+    config, demos, preferences, expert, expert_scalar = cdst.config, cdst.demos, cdst.preferences, cdst.expert, \
+        cdst.expert_scalar
+    methods = (f"MOIQ beta={config.moiq.beta:g}", "MOIQ beta=0", "IQ-Learn")
     seeds = list(range(args.seeds))
 
     start = time.perf_counter()
     if args.reuse:
         moiq_sweep, iq_sweep, train_seconds = pickle.loads(pathlib.Path(args.reuse).read_bytes())
     else:
-        moiq_sweep = moiq_train.sweep(config, beta=[config.beta, 0.0], seed=seeds, demos=demos)
-        iq_sweep = moiq_train.sweep(config.replace(algo="iq_learn", beta=0.0), seed=seeds, demos=demos)
+        moiq_sweep = moiq_jax.sweep(config, beta=[config.moiq.beta, 0.0], seed=seeds, demos=demos)
+        iq_sweep = moiq_jax.sweep(config.replace(algo="iq_learn"), seed=seeds, demos=demos)
         train_seconds = time.perf_counter() - start
     if args.save:
         pathlib.Path(args.save).write_bytes(pickle.dumps(jax.device_get((moiq_sweep, iq_sweep, train_seconds))))
@@ -93,9 +78,10 @@ def main() -> None:
 
     split = len(seeds)  # the MOIQ sweep's runs are the tuned beta (seeds...), then beta 0 (seeds...)
     runs = {methods[0]: slice(0, split), methods[1]: slice(split, 2 * split)}
-    swept = {m: {"seeds": moiq_sweep["seeds"][s], "best_params": run_index(moiq_sweep["best_params"], s),
-                 "history": {k: v[s] for k, v in moiq_sweep["history"].items()}} for m, s in runs.items()}
-    swept["IQ-Learn"] = iq_sweep
+    swept = {m: {"seeds": moiq_sweep.runs["seed"][s], "best_params": run_index(moiq_sweep.best_params, s),
+                 "history": {k: v[s] for k, v in moiq_sweep.history.items()}} for m, s in runs.items()}
+    swept["IQ-Learn"] = {"seeds": iq_sweep.runs["seed"], "best_params": iq_sweep.best_params,
+                         "history": iq_sweep.history}
     np.savez(out / "curves.npz", **{f"{m}/{k}": v for m in methods for k, v in swept[m]["history"].items()})
 
     # Figure 2: evaluation return (scalarised) against env steps, mean and std over seeds.
@@ -117,7 +103,7 @@ def main() -> None:
 
     # Table 1: best model per run, re-evaluated with moiq_jax.evaluate.
     rows, summary = [], {"steps_per_expert": args.steps, "seeds": seeds, "train_seconds": train_seconds,
-                         "config": {k: v for k, v in vars(config).items()}}
+                         "config": config.to_dict()}
     for method in methods:
         returns = best_model_returns(method, swept[method], preferences)  # [seeds, E, d]
         scalar = (returns * preferences).sum(-1)

@@ -16,7 +16,7 @@ import csv
 import json
 
 import numpy as np
-from cdst_moiq import TRANSFER_PREFERENCES, optimal_for
+from common import TRANSFER_PREFERENCES, optimal_for
 
 import moiq_jax
 from moiq_jax.config import tuned

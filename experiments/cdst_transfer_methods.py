@@ -26,17 +26,15 @@ import pathlib
 import pickle
 import time
 
-import cdst_moiq
+import common
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 import moiq_jax
-from moiq_jax.algos import moiq_train
-from moiq_jax.algos.moiq import networks_for, recovered_rewards
-from moiq_jax.config import tuned
+from moiq_jax.algos.moiq import recovered_rewards
 from moiq_jax.evaluate import episode_returns
-from moiq_jax.networks import deterministic_action
+from moiq_jax.networks import deterministic_action, networks_for
 
 
 def gpi_action(nets, params, obs, preference, expert_preferences):
@@ -98,28 +96,26 @@ def main() -> None:
     parser.add_argument("--reuse", metavar="PICKLE", help="load the trained sweep from this file instead of training")
     parser.add_argument("--save", metavar="PICKLE", help="save the trained sweep's best parameters to this file")
     args = parser.parse_args()
-    moiq_train.split_cpu_into_devices(args.seeds)  # one CPU device per run
-    moiq_train.use_compilation_cache()  # a rerun loads the compiled programs
-    config = tuned("cdst") if args.beta is None else tuned("cdst", beta=args.beta)
-    demos = moiq_train.load_demonstrations(config)
+    common.start(args.seeds)  # one CPU device per run
+    cdst = common.CdstSetup() if args.beta is None else common.CdstSetup(beta=args.beta)
+    config, demos = cdst.config, cdst.demos
     if args.reuse:
         best_params = pickle.loads(pathlib.Path(args.reuse).read_bytes())
     else:
         start = time.perf_counter()
-        best_params = jax.device_get(moiq_train.sweep(config, seed=range(args.seeds), demos=demos)["best_params"])
+        best_params = jax.device_get(moiq_jax.sweep(config, seed=range(args.seeds), demos=demos).best_params)
         print(f"trained {args.seeds} seeds in {time.perf_counter() - start:.0f} s")
     if args.save:
         pathlib.Path(args.save).write_bytes(pickle.dumps(best_params))
 
     env = moiq_jax.envs.make("cdst", absorbing=True)
-    front = env.unwrapped.pareto_front()
-    preferences = cdst_moiq.TRANSFER_PREFERENCES
-    optimal = np.stack([cdst_moiq.optimal_for(front, w) for w in preferences])
+    preferences = common.TRANSFER_PREFERENCES
+    optimal = common.transfer_optima()
     expert_preferences = jnp.asarray(demos.preferences, jnp.float32)
-    print(f"beta {config.beta:g}; columns: preference, return of the actor, of GPI, of selection by consensus reward "
+    print(f"beta {config.moiq.beta:g}; columns: preference, return of the actor, of GPI, of selection by consensus reward "
           "among all rollouts and among the experts' behaviours; Pareto-optimal return")
     for seed in range(args.seeds):
-        params = cdst_moiq.run_index(best_params, seed)
+        params = common.run_index(best_params, seed)
         direct = moiq_jax.evaluate(params, env, preferences)
         gpi = gpi_returns(params, env, preferences, expert_preferences)
         selected = selected_by_consensus(params, env, preferences, expert_preferences, config.gamma)

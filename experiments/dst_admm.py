@@ -15,8 +15,8 @@ import os
 
 import numpy as np
 
+import moiq_jax
 from moiq_jax import Config
-from moiq_jax.algos import admm
 
 SETUPS = {
     "dst-mini": ((0.9, 0.1), (0.1, 0.9)),
@@ -26,9 +26,9 @@ SEEDS = range(5)
 
 
 def run(inner_rl: str = "soft_vi") -> dict:
-    """Train every setup for all seeds; map name -> ADMMResult."""
+    """Train every setup for all seeds; map name -> its sweep's Result."""
     return {
-        env: admm.train_seeds(Config(env=env, algo="admm", preferences=prefs, gamma=0.999, inner_rl=inner_rl), SEEDS)
+        env: moiq_jax.sweep(Config(env=env, algo="admm", preferences=prefs, gamma=0.999, inner_rl=inner_rl), seed=SEEDS)
         for env, prefs in SETUPS.items()
     }
 
@@ -36,14 +36,14 @@ def run(inner_rl: str = "soft_vi") -> dict:
 def summarise(results: dict) -> dict:
     summary = {}
     for env, r in results.items():
-        optimal = np.isclose(r.metrics["return"], r.optimal_return, atol=1e-3)  # [seeds, rounds, experts]
-        t = r.transfer
+        optimal = np.isclose(r.history["return"], r.extras["optimal_return"], atol=1e-3)  # [seeds, rounds, experts]
+        t = r.extras["transfer"]
         transfer_ok = np.isclose(t["return"], t["optimal_return"], atol=1e-3)  # [seeds, 19]
-        shown = np.unique(np.round(r.metrics["treasure"][:, -1], 3))
+        shown = np.unique(np.round(r.history["treasure"][:, -1], 3))
         summary[env] = {
             "seeds_all_experts_optimal_at_round_10": int(optimal[:, -1].all(-1).sum()),
             "first_round_all_seeds_optimal": int(np.argmax(optimal.all((0, 2)))) + 1 if optimal.all((0, 2)).any() else None,
-            "final_reward_correlation_mean": r.metrics["reward_correlation"][:, -1].mean(0).round(3).tolist(),
+            "final_reward_correlation_mean": r.history["reward_correlation"][:, -1].mean(0).round(3).tolist(),
             "transfer_optimal_per_seed": transfer_ok.sum(-1).tolist(),
             "agent_treasures_at_round_10": shown.tolist(),
         }
@@ -65,19 +65,19 @@ def write(results: dict, out: str, inner_rl: str) -> dict:
         writer.writerow(["map", "seed", "round", "preference", "return", "optimal_return", "length", "treasure",
                          "reward_correlation"])
         for env, r in results.items():
-            m = r.metrics
+            m = r.history
             for s, seed in enumerate(SEEDS):
-                for k in range(r.config.rounds):
+                for k in range(r.config.admm.rounds):
                     for e, w in enumerate(r.preferences):
                         writer.writerow([env, seed, k + 1, [round(float(x), 2) for x in w], m["return"][s, k, e],
-                                         r.optimal_return[e], m["length"][s, k, e], m["treasure"][s, k, e],
+                                         r.extras["optimal_return"][e], m["length"][s, k, e], m["treasure"][s, k, e],
                                          m["reward_correlation"][s, k, e]])
     with open(os.path.join(out, "transfer.csv"), "w", newline="") as f:
         writer = csv.writer(f)
         writer.writerow(["map", "seed", "preference", "treasure", "steps", "return", "optimal_return",
                          "optimal_treasure"])
         for env, r in results.items():
-            t = r.transfer
+            t = r.extras["transfer"]
             best = _optimal_treasures(env, t["preferences"])
             for s, seed in enumerate(SEEDS):
                 for p, w in enumerate(t["preferences"]):
@@ -98,14 +98,14 @@ def plot(results: dict, path: str, inner_rl: str) -> None:
 
     fig, axes = plt.subplots(2, len(results), figsize=(5 * len(results), 7), squeeze=False)
     for col, (env, r) in enumerate(results.items()):
-        rounds = np.arange(1, r.config.rounds + 1)
+        rounds = np.arange(1, r.config.admm.rounds + 1)
         for e, w in enumerate(r.preferences):
             for row, key in enumerate(("return", "length")):
-                values = r.metrics[key][:, :, e].astype(float)
+                values = r.history[key][:, :, e].astype(float)
                 ax = axes[row, col]
                 line, = ax.plot(rounds, values.mean(0), marker="o", label=f"w={[round(float(x), 2) for x in w]}")
                 ax.fill_between(rounds, values.min(0), values.max(0), color=line.get_color(), alpha=0.2)
-                optimum = r.optimal_return[e] if key == "return" else _optimal_length(r, e)
+                optimum = r.extras["optimal_return"][e] if key == "return" else _optimal_length(r, e)
                 ax.axhline(optimum, color=line.get_color(), linestyle="--", linewidth=1)
                 ax.set_xlabel("round")
                 ax.set_ylabel(f"scalarised {key}" if key == "return" else "episode length")

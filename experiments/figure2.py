@@ -26,9 +26,9 @@ def main() -> None:
     out.mkdir(parents=True, exist_ok=True)
 
     def methods_of(env):
-        gail = paper.task_sweep(env, args, "gail", paper.gail_config(env, args.quick), betas=(0.0,))
+        gail = paper.task_sweep(env, args, "gail", paper.gail_config(env, args.quick), betas=None)
         return {"MOIQ beta=5": paper.learning_curves(paper.task_sweep(env, args), 5.0),
-                "GAIL": paper.learning_curves(gail, 0.0)}
+                "GAIL": paper.learning_curves(gail, None)}
 
     summary = paper.curves_figure(args.envs, methods_of, out / "figure2.png")
     (out / "figure2.json").write_text(json.dumps({"final_ewma_return": summary}, indent=1))

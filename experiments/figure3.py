@@ -47,13 +47,13 @@ def main() -> None:
     for ax, env in zip(axes[0], envs):
         result = paper.task_sweep(env, args)
         runs = paper.runs_of(result, 5.0)
-        returns = np.stack([moiq_jax.evaluate(jax.tree_util.tree_map(lambda x, r=r: x[r], result["best_params"]), env,
+        returns = np.stack([moiq_jax.evaluate(jax.tree_util.tree_map(lambda x, r=r: x[r], result.best_params), env,
                                               preferences, episodes=episodes) for r in runs])  # [seeds, 19, 2]
         experts = paper.expert_returns(env)
         reference = np.minimum(returns.reshape(-1, 2).min(0), experts.min(0)) - 1e-6
         summary[env] = {"hypervolume_per_seed": [round(hypervolume(r, reference), 2) for r in returns],
                         "expert_hypervolume": round(hypervolume(experts, reference), 2), "reference": reference.tolist()}
-        for s, seed_returns in zip(result["seeds"][runs], returns):
+        for s, seed_returns in zip(result.runs["seed"][runs], returns):
             rows += [{"env": env, "seed": int(s), "preference": np.round(w, 2).tolist(), "vector_return": r.round(2).tolist()}
                      for w, r in zip(preferences, seed_returns)]
         mean = returns.mean(0)

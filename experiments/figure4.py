@@ -30,7 +30,7 @@ def main() -> None:
         moiq = paper.moiq_config(env, args.quick, num_demos=1, beta=5.0)
         iq_learn = moiq.replace(algo="iq_learn", beta=0.0)
         return {"MOIQ beta=5": paper.learning_curves(paper.task_sweep(env, args, "moiq-1demo", moiq, (5.0,)), 5.0),
-                "IQ-Learn": paper.learning_curves(paper.task_sweep(env, args, "iq_learn-1demo", iq_learn, (0.0,)), 0.0)}
+                "IQ-Learn": paper.learning_curves(paper.task_sweep(env, args, "iq_learn-1demo", iq_learn, None), None)}
 
     summary = paper.curves_figure(args.envs, methods_of, out / "figure4.png", note=", 1 demonstration")
     (out / "figure4.json").write_text(json.dumps({"final_ewma_return": summary}, indent=1))

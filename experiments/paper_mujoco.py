@@ -13,7 +13,6 @@ import argparse
 import csv
 import pathlib
 import pickle
-import time
 
 import jax
 import matplotlib
@@ -23,8 +22,9 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 
 import moiq_jax
-from moiq_jax.algos import moiq_train
 from moiq_jax.config import Config, tuned
+from moiq_jax.result import Result
+from moiq_jax.runtime import use_compilation_cache
 
 ENVS = ("mo-halfcheetah", "mo-hopper", "mo-walker2d", "mo-ant")
 DEMOS = pathlib.Path(__file__).resolve().parent / "demos"
@@ -69,46 +69,49 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--cache", default="results/mujoco/sweeps", help="where the sweeps are kept")
 
 
-def task_sweep(env: str, args, name: str = "moiq", config: Config | None = None, betas=BETAS) -> dict:
-    """The ``betas`` x seed sweep ``name`` of ``env`` (``moiq_train.sweep``'s result plus ``config`` and
-    ``seconds``; ``config`` defaults to ``moiq_config``), loaded from the cache when a run with the same
-    config and seeds is there, else trained and cached."""
-    moiq_train.use_compilation_cache()  # each seed's evaluation, and every rerun, loads the same programs
+def task_sweep(env: str, args, name: str = "moiq", config: Config | None = None, betas=BETAS) -> Result:
+    """The ``betas`` (None: the algorithm has no beta) x seed sweep ``name`` of ``env`` (``moiq_jax.sweep``'s
+    result; ``config`` defaults to ``moiq_config``), loaded from the cache when a run with the same config
+    and seeds is there, else trained and cached."""
+    use_compilation_cache()  # each seed's evaluation, and every rerun, loads the same programs
     config = moiq_config(env, args.quick) if config is None else config
     seeds = list(range(2 if args.quick else args.seeds))
     cache = pathlib.Path(args.cache) / ("quick" if args.quick else "")
-    path = cache / f"{env}-{name}-{config.total_steps}.pkl"
+    path = cache / f"{env}-{name}-{config.offpolicy.total_steps}.pkl"
     if path.exists():
         cached = pickle.loads(path.read_bytes())
-        if cached["config"] == config and list(cached["seeds"][: len(seeds)]) == seeds:
+        if isinstance(cached, Result) and cached.config == config and list(cached.runs["seed"][: len(seeds)]) == seeds:
             return cached
-    start = time.perf_counter()
-    result = jax.device_get(moiq_train.sweep(config, beta=list(betas), seed=seeds))
-    result.update(config=config, seconds=time.perf_counter() - start)
+    values = {"seed": seeds} if betas is None else {"beta": list(betas), "seed": seeds}
+    result = jax.device_get(moiq_jax.sweep(config, **values))
     cache.mkdir(parents=True, exist_ok=True)
     path.write_bytes(pickle.dumps(result))
-    print(f"{env}: trained {name}, {len(betas)} betas x {len(seeds)} seeds in {result['seconds']:.0f}s (cached in {path})")
+    print(f"{env}: trained {name}, {len(betas or [None])} betas x {len(seeds)} seeds in {result.seconds:.0f}s "
+          f"(cached in {path})")
     return result
 
 
-def learning_curves(result: dict, beta: float) -> tuple[np.ndarray, np.ndarray]:
+def learning_curves(result: Result, beta: float | None) -> tuple[np.ndarray, np.ndarray]:
     """``(env steps per expert [evals], EWMA scalarised evaluation returns [seeds, evals, E])`` of the
     ``beta`` runs of a sweep (one model, or one per expert: the steps are the same)."""
-    steps = np.asarray(result["history"]["env_steps"])[0]
+    steps = np.asarray(result.history["env_steps"])[0]
     steps = steps if steps.ndim == 1 else steps[:, 0]
     runs = runs_of(result, beta)
-    return steps, ewma(np.asarray(result["history"]["eval_scalar_return"])[runs], axis=1)
+    return steps, ewma(np.asarray(result.history["eval_scalar_return"])[runs], axis=1)
 
 
-def runs_of(result: dict, beta: float) -> np.ndarray:
-    return np.flatnonzero(np.isclose(result["betas"], beta))
+def runs_of(result: Result, beta: float | None) -> np.ndarray:
+    """The runs of a sweep with consensus weight ``beta`` (None: every run, for algorithms without one)."""
+    if beta is None:
+        return np.arange(len(result.runs["seed"]))
+    return np.flatnonzero(np.isclose(result.runs["beta"], beta))
 
 
-def best_model_returns(result: dict, beta: float, episodes: int) -> np.ndarray:
+def best_model_returns(result: Result, beta: float, episodes: int) -> np.ndarray:
     """``[seeds, E, d]`` mean vector returns over ``episodes`` of each ``beta`` run's best model at the
     experts' preferences."""
-    config = result["config"]
-    return np.stack([moiq_jax.evaluate(jax.tree_util.tree_map(lambda x, r=r: x[r], result["best_params"]),
+    config = result.config
+    return np.stack([moiq_jax.evaluate(jax.tree_util.tree_map(lambda x, r=r: x[r], result.best_params),
                                        config.env, config.preferences, episodes=episodes)
                      for r in runs_of(result, beta)])
 

@@ -34,7 +34,7 @@ def main() -> None:
     rows = []
     for env in args.envs:
         result = paper.task_sweep(env, args)
-        preferences = np.asarray(result["config"].preferences)
+        preferences = np.asarray(result.config.preferences)
         returns = paper.best_model_returns(result, 5.0, episodes)  # [seeds, E, d]
         scalar = (returns * preferences).sum(-1)
         expert = (paper.expert_returns(env) * preferences).sum(-1)

@@ -33,7 +33,7 @@ def main() -> None:
         result = paper.task_sweep(env, args)
         smoothed = {beta: paper.learning_curves(result, beta) for beta in paper.BETAS}  # (steps, [seeds, evals, E])
         steps = smoothed[5.0][0]
-        for e, w in enumerate(result["config"].preferences):
+        for e, w in enumerate(result.config.preferences):
             final = {beta: float(curve[:, -1, e].mean()) for beta, (_, curve) in smoothed.items()}
             change = 100 * (final[5.0] - final[0.0]) / abs(final[0.0])
             rows.append({"env": env, "preference": list(w), "beta0": round(final[0.0], 2), "beta5": round(final[5.0], 2),

@@ -34,12 +34,12 @@ def main() -> None:
     for env in args.envs:
         result = paper.task_sweep(env, args)
         runs = paper.runs_of(result, 5.0)
-        history = {k: np.asarray(v)[runs] for k, v in result["history"].items()}
+        history = {k: np.asarray(v)[runs] for k, v in result.history.items()}
         best = np.argmax(history["eval_scalar_return"].mean(-1), axis=1)  # each run's best evaluation
         seed_rows = np.arange(len(runs))
         scalar = history["reward_correlation"][seed_rows, best]  # [seeds, E]
         per_objective = history["reward_correlation_objectives"][seed_rows, best]  # [seeds, E, d]
-        for e, w in enumerate(result["config"].preferences):
+        for e, w in enumerate(result.config.preferences):
             rows.append({"env": env, "preference": list(w), "correlation": round(float(scalar[:, e].mean()), 3),
                          "std": round(float(scalar[:, e].std()), 3),
                          "per_objective": np.round(per_objective[:, e].mean(0), 3).tolist(),

@@ -17,7 +17,6 @@ past that many seconds.
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import pathlib
 import time
@@ -33,9 +32,9 @@ def train(args, out: pathlib.Path) -> None:
     changes = {name: getattr(args, name) for name in ("total_steps", "eval_interval", "learning_starts", "num_envs",
                                                       "updates_per_step", "seed") if getattr(args, name) is not None}
     config = sac.expert_config(args.env, **changes)
-    config = config.replace(buffer_size=min(config.buffer_size, config.total_steps))
+    config = config.replace(buffer_size=min(config.offpolicy.buffer_size, config.offpolicy.total_steps))
     device = jax.devices()[0]
-    print(f"{args.env}: SAC experts for {config.preferences}, up to {config.total_steps:,} env steps each, "
+    print(f"{args.env}: SAC experts for {config.preferences}, up to {config.offpolicy.total_steps:,} env steps each, "
           f"on {device.platform} ({device.device_kind})", flush=True)
     start = time.perf_counter()
 
@@ -44,7 +43,7 @@ def train(args, out: pathlib.Path) -> None:
         steps = int(np.max(history[-1]["env_steps"]))
         record = {"env": args.env, "device": f"{device.platform} ({device.device_kind})",
                   "seconds": round(time.perf_counter() - start, 1), "env_steps_per_expert": steps,
-                  "config": dataclasses.asdict(config),
+                  "config": config.to_dict(),
                   "history": {k: [np.asarray(h[k], np.float64).round(3).tolist() for h in history]
                               for k in ("env_steps", "eval_scalar_return", "eval_return", "alpha")}}
         (out / f"{args.env}-training.json").write_text(json.dumps(record, indent=1))

@@ -3,17 +3,16 @@
 from __future__ import annotations
 
 import argparse
-import dataclasses
-import inspect
 import json
 import os
-import re
 import sys
 import time
 
 import numpy as np
 
-from moiq_jax.config import Config, tuned
+from moiq_jax.config import Config, field_help, tuned
+
+FIELDS = Config().to_dict()  # every field's flat name (its flag) and default
 
 
 def _cmd_envs(args) -> int:
@@ -69,16 +68,6 @@ def _cmd_rollout(args) -> int:
     return 0
 
 
-def _field_help() -> dict[str, str]:
-    """Each Config field's help: the comment after it in config.py (one place documents a field)."""
-    helps = {}
-    for line in inspect.getsource(Config).splitlines():
-        match = re.match(r"\s+(\w+): [^=]+= .*?#\s*(.+)$", line)
-        if match:
-            helps[match.group(1)] = match.group(2).strip()
-    return helps
-
-
 def _parse_vector(text: str) -> tuple[float, ...]:
     try:
         return tuple(float(w) for w in text.split(","))
@@ -91,12 +80,11 @@ def add_config_flags(parser: argparse.ArgumentParser) -> None:
 
     Flags default to None so that only the ones given override the file's or Config's values."""
     parser.add_argument("--config", metavar="FILE", help="a JSON or YAML file of Config fields; flags override it")
-    helps, defaults = _field_help(), Config()
-    for field in dataclasses.fields(Config):
-        flag = "--" + field.name.replace("_", "-")
-        default = getattr(defaults, field.name)
-        text = f"{helps.get(field.name, field.name.replace('_', ' '))} (default: {default})"
-        if field.name == "preferences":
+    helps = field_help()
+    for name, default in FIELDS.items():
+        flag = "--" + name.replace("_", "-")
+        text = f"{helps[name]} (default: {default})"
+        if name == "preferences":
             parser.add_argument(flag, nargs="+", type=_parse_vector, metavar="W1,W2", default=None,
                                 help=text + "; one comma-separated vector per expert")
         elif isinstance(default, bool):
@@ -115,10 +103,10 @@ def config_from_args(args: argparse.Namespace) -> Config:
     values = {}
     if args.config:
         values = load_config_file(args.config)
-    for field in dataclasses.fields(Config):
-        given = getattr(args, field.name, None)
+    for name in FIELDS:
+        given = getattr(args, name, None)
         if given is not None:
-            values[field.name] = given
+            values[name] = given
     return tuned(values.pop("env", Config.env), **values)
 
 
@@ -135,7 +123,7 @@ def load_config_file(path: str) -> dict:
             values = json.load(f)
     if not isinstance(values, dict):
         raise ValueError(f"config file {path!r} must hold a mapping of Config fields, got {type(values).__name__}")  # noqa: TRY004 (a user's input error, reported as the others)
-    known = {field.name for field in dataclasses.fields(Config)}
+    known = set(FIELDS)
     unknown = sorted(set(values) - known)
     if unknown:
         raise ValueError(f"config file {path!r} has unknown fields {unknown}; known fields: {', '.join(sorted(known))}")
@@ -154,7 +142,7 @@ def _resolve_run(args) -> tuple[Config, str, bool]:
     """The config, run directory and resume flag of ``moiq train``."""
     if args.resume:
         config = _saved_config(args.resume)
-        given = [f.name for f in dataclasses.fields(Config) if getattr(args, f.name, None) is not None]
+        given = [name for name in FIELDS if getattr(args, name, None) is not None]
         if given or args.config:
             raise ValueError(f"--resume continues the run's saved config; drop --config and {given}")
         return config, args.resume, True
@@ -167,87 +155,102 @@ def _resolve_run(args) -> tuple[Config, str, bool]:
 
 
 def _print_returns_against_experts(config: Config, result) -> None:
-    from moiq_jax.algos.moiq_train import load_demonstrations
+    """One row per expert, in the config's order and under its own preference."""
+    from moiq_jax.experts.loading import load_demonstrations
 
     try:
         expert = load_demonstrations(config).mean_returns()
     except ValueError:  # SAC experts of an env without oracle experts: nothing to compare with
-        expert = [None] * len(config.preferences)
+        expert = [None] * len(result.preferences)
     final = np.asarray(result.history["eval_return"][-1])
     best_step = int(np.argmax(np.asarray(result.history["eval_scalar_return"]).mean(axis=1)))
     best = np.asarray(result.history["eval_return"][best_step])
     print(f"returns per preference (vector, then scalarised); best = evaluation {best_step + 1} of "
           f"{len(result.history['eval_return'])}")
     print(f"  {'preference':<12} {'expert':<26} {'final':<26} {'best':<26}")
-    for w, e, f, b in zip(np.asarray(config.preferences), expert, final, best):
+    for w, e, f, b in zip(np.asarray(result.preferences), expert, final, best):
         cells = ["-" if v is None else f"{_format_vector(v)} {float(np.dot(w, v)):7.2f}" for v in (e, f, b)]
         print(f"  {_format_preference(w):<12} " + " ".join(f"{c:<26}" for c in cells))
 
 
-def _run_sweep(config: Config, betas, seeds, out_dir: str) -> None:
-    """Train every (beta, seed) as one vmapped program, one CPU device per run
-    (``moiq_train.split_cpu_into_devices``); write each run's config.json and metrics.csv to
-    ``out_dir/beta<b>-seed<s>`` (so `moiq plot` reads them) and print final and best returns per run."""
+def _run_sweep(config: Config, values: dict, out_dir: str) -> None:
+    """Train every combination of ``values`` (swept name -> list) as one vmapped program, one CPU device
+    per run (``runtime.split_cpu_into_devices``); write each run's config.json and metrics.csv to
+    ``out_dir/<name><value>-...`` (e.g. ``beta0.5-seed0``, so `moiq plot` reads them) and print final
+    and best returns per run."""
     import moiq_jax
-    from moiq_jax.algos.moiq_train import split_cpu_into_devices
     from moiq_jax.runlog import RunLog
+    from moiq_jax.runtime import split_cpu_into_devices
 
-    split_cpu_into_devices(len(betas) * len(seeds))
+    split_cpu_into_devices(int(np.prod([len(v) for v in values.values()])))
 
-    result = moiq_jax.sweep(config, beta=betas, seed=seeds)
-    history = result["history"]
-    steps = np.asarray(history["env_steps"])  # [runs, evals, experts]
-    print(f"{len(result['betas'])} runs; scalarised returns per preference {[_format_preference(w) for w in config.preferences]}")
-    for run, (beta, seed) in enumerate(zip(result["betas"], result["seeds"])):
-        run_config = config.replace(beta=float(beta), seed=int(seed))
-        run_dir = os.path.join(out_dir, f"beta{float(beta):g}-seed{int(seed)}")
-        log = RunLog(run_dir, run_config, total_steps=int(steps[run].max()), progress=False)
+    result = moiq_jax.sweep(config, **values)
+    history = result.history
+    steps = np.asarray(history["env_steps"])  # [runs, evals(, experts)]
+    print(f"{len(result.runs['seed'])} runs; scalarised returns per preference "
+          f"{[_format_preference(w) for w in result.preferences]}")
+    for run in range(len(result.runs["seed"])):
+        run_result = result.run(run)
+        swept = {name: v[run].item() for name, v in result.runs.items()}
+        run_dir = os.path.join(out_dir, "-".join(f"{name}{value:g}" for name, value in swept.items()))
+        log = RunLog(run_dir, run_result.config, total_steps=int(steps[run].max()), progress=False)
         for t in range(steps.shape[1]):
-            log.log(int(steps[run, t].max()), {name: np.asarray(v)[run, t] for name, v in history.items()})
+            log.log(int(steps[run, t].max()), {name: np.asarray(v)[t] for name, v in run_result.history.items()})
         log.close()
-        scalar = np.asarray(history["eval_scalar_return"])[run]
+        scalar = np.asarray(run_result.history["eval_scalar_return"])
         best = scalar[int(np.argmax(scalar.mean(axis=1)))]
-        print(f"  beta {float(beta):<5g} seed {int(seed):<3d} final {_format_vector(scalar[-1])}  "
-              f"best {_format_vector(best)}  -> {run_dir}")
+        shown = " ".join(f"{name} {value:<5g}" if name != "seed" else f"seed {int(value):<3d}"
+                         for name, value in swept.items())
+        print(f"  {shown} final {_format_vector(scalar[-1])}  best {_format_vector(best)}  -> {run_dir}")
 
 
 def _cmd_sweep(args) -> int:
-    config = config_from_args(args).validate()
+    from moiq_jax.train import swept_names, validate
+
+    config = validate(config_from_args(args))
     out_dir = args.out or os.path.join("runs", f"sweep-{config.env}-{config.algo}-{time.strftime('%Y%m%d-%H%M%S')}")
     if os.path.exists(out_dir) and os.listdir(out_dir):
         raise ValueError(f"sweep directory {out_dir!r} already exists; choose another --out")
-    betas = args.betas or [config.beta]
-    seeds = list(range(config.seed, config.seed + args.seeds))
-    _run_sweep(config, betas, seeds, out_dir)
+    values = {"seed": list(range(config.seed, config.seed + args.seeds))}
+    if args.betas:
+        if "beta" not in swept_names(config):
+            raise ValueError(f"--betas: {config.algo} has no consensus penalty weight to sweep")
+        values = {"beta": args.betas, **values}
+    _run_sweep(config, values, out_dir)
     return 0
 
 
 def _cmd_train(args) -> int:
     import moiq_jax
+    from moiq_jax.algos.offpolicy import Algorithm
+    from moiq_jax.train import algorithm_of, validate
 
     config, run_dir, resume = _resolve_run(args)
-    config.validate()
-    if config.algo == "admm":  # one compiled program of all rounds (seconds): logged, not checkpointed
+    validate(config)
+    algorithm = algorithm_of(config)
+    if not isinstance(algorithm, Algorithm):  # ADMM: one compiled program of all rounds (seconds), not checkpointed
         from moiq_jax.runlog import RunLog
 
         result = moiq_jax.train(config)
-        log = RunLog(run_dir, config, total_steps=config.rounds, progress=False, step_name="round")
-        for r in range(config.rounds):
-            log.log(r + 1, {name: np.asarray(values)[0, r] for name, values in result.metrics.items()})
+        rounds = config.admm.rounds
+        log = RunLog(run_dir, config, total_steps=rounds, progress=False, step_name="round")
+        for r in range(rounds):
+            log.log(r + 1, {name: np.asarray(values)[r] for name, values in result.history.items()})
         log.close()
-        last = {name: np.asarray(values)[0, -1] for name, values in result.metrics.items()}
+        last = {name: np.asarray(values)[-1] for name, values in result.history.items()}
         print(f"run directory: {run_dir}")
-        print(f"after {config.rounds} rounds: returns per expert (vector, scalarised) against the optimum")
-        for w, v, s, best in zip(result.preferences, last["vector_return"], last["return"], result.optimal_return):
+        print(f"after {rounds} rounds: returns per expert (vector, scalarised) against the optimum")
+        for w, v, s, best in zip(result.preferences, last["vector_return"], last["return"],
+                                 result.extras["optimal_return"]):
             print(f"  {_format_preference(w):<12} {_format_vector(v)} {float(s):8.2f}   optimum {float(best):8.2f}")
         return 0
     if args.seeds > 1:  # several seeds train as one vmapped program (no checkpoints: see `moiq sweep`)
-        _run_sweep(config, [config.beta], list(range(config.seed, config.seed + args.seeds)), run_dir)
+        _run_sweep(config, {"seed": list(range(config.seed, config.seed + args.seeds))}, run_dir)
         return 0
     print(f"run directory: {run_dir}")
     result = moiq_jax.train(config, run_dir=run_dir, resume=resume, progress=not args.no_progress, log=None)
     _print_returns_against_experts(config, result)
-    if config.algo == "sac":
+    if not algorithm.learns_from_demos:  # trained experts: save them to record demonstrations
         from moiq_jax.experts import sac
 
         experts = os.path.join(run_dir, "experts.npz")
@@ -296,14 +299,15 @@ def _cmd_plot(args) -> int:
     out_dir = args.out or args.run_dirs[0]
     os.makedirs(out_dir, exist_ok=True)
     config = _saved_config(args.run_dirs[0])
-    from moiq_jax.algos.moiq_train import load_demonstrations
+    from moiq_jax.experts.loading import load_demonstrations
 
     try:
         demos = load_demonstrations(config)
         expert = (demos.mean_returns() * np.asarray(demos.preferences)).sum(-1)
     except ValueError:  # no oracle experts for this env and no demos file: curves without expert lines
         expert = None
-    metric = args.metric or ("return" if config.algo == "admm" else "eval_scalar_return")
+    rounds = plots.read_metrics(args.run_dirs[0]).step_name == "round"  # ADMM logs rounds, not env steps
+    metric = args.metric or ("return" if rounds else "eval_scalar_return")
     print(plots.learning_curves(args.run_dirs, os.path.join(out_dir, "learning_curves.png"), metric, expert))
     base = envs.make(config.env).unwrapped
     for run_dir in args.run_dirs:
@@ -320,14 +324,16 @@ def _cmd_eval(args) -> int:
 
     import moiq_jax
     from moiq_jax import envs
-    from moiq_jax.algos.moiq_train import make_train
+    from moiq_jax.algos.offpolicy import Algorithm, make_trainer
     from moiq_jax.checkpoint import Checkpoints
     from moiq_jax.preferences import preference_sweep
+    from moiq_jax.train import algorithm_of
 
     config = _saved_config(args.run_dir)
-    if config.algo != "moiq":
-        raise ValueError(f"moiq eval evaluates one preference-conditioned moiq model; this run is {config.algo!r}")
-    like = jax.jit(make_train(config).init)(jax.random.PRNGKey(config.seed)).best_params
+    algorithm = algorithm_of(config)
+    if not isinstance(algorithm, Algorithm) or algorithm.one_model_per_expert:
+        raise ValueError(f"moiq eval evaluates one preference-conditioned model (moiq); this run is {config.algo!r}")
+    like = jax.jit(make_trainer(config, algorithm).init)(jax.random.PRNGKey(config.seed)).best_params
     checkpoints = Checkpoints(os.path.join(args.run_dir, "checkpoints"))
     try:
         params, meta = checkpoints.restore_best(like)
@@ -428,8 +434,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from moiq_jax.algos.moiq_train import use_compilation_cache
     from moiq_jax.runner import TrainingDiverged
+    from moiq_jax.runtime import use_compilation_cache
 
     args = build_parser().parse_args(argv)
     use_compilation_cache()  # reruns load their programs instead of compiling them

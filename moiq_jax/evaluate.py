@@ -83,7 +83,7 @@ def random_policy(env: Env) -> Policy:
 
 def preference_returns(nets, actor_params, env: Env, preferences, key, num_episodes: int) -> jax.Array:
     """Jittable: vector returns ``[P, num_episodes, d]`` of the deterministic preference-conditioned
-    policy ``nets.act`` (``moiq.Networks``) for each of the ``P`` preferences."""
+    policy ``nets.act`` (``networks.Networks``) for each of the ``P`` preferences."""
 
     def one(preference, k):
         policy = lambda _, obs: nets.act(actor_params, obs[None], preference)[0]
@@ -100,7 +100,7 @@ def evaluate(params, env: Env | str, preferences, episodes: int = 1, seed: int =
     (a policy trained with it observes the absorbing flag). Preferences may be any, not just the experts'.
     """
     from moiq_jax import envs
-    from moiq_jax.algos.moiq import networks_for, observation_size
+    from moiq_jax.networks import networks_for, observation_size
 
     env = envs.make(env, absorbing=True) if isinstance(env, str) else env
     nets = networks_for(params)

@@ -1,13 +1,17 @@
-"""Preference-conditioned networks for MOIQ: twin vector critics Q(s, a, w) in R^d and a tanh-Gaussian
-actor pi(a | s, w). The preference w is an input, so one network serves every expert."""
+"""Preference-conditioned networks: twin vector critics Q(s, a, w) in R^d and a tanh-Gaussian actor
+pi(a | s, w), the ``Networks`` pair every off-policy algorithm trains, its ``Params``, and what builds
+them (``networks_of_sizes``, or ``networks_for`` from trained parameters). The preference w is an
+input, so one network serves every expert."""
 
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import Any, NamedTuple
 
 import flax.linen as nn
 import jax
 import jax.numpy as jnp
+from flax import struct
 
 LOG_STD_MIN, LOG_STD_MAX = -5.0, 2.0
 
@@ -97,3 +101,66 @@ def sample_action(key, mean, log_std, action_scale: float = 1.0):
 def deterministic_action(mean, action_scale: float = 1.0):
     """The evaluation action of the same policy: ``clip(action_scale * tanh(mean), -1, 1)``."""
     return jnp.clip(action_scale * jnp.tanh(mean), -1.0, 1.0)
+
+
+def tile(preference, n):
+    """One preference ``(d,)`` repeated for ``n`` rows: ``(n, d)``."""
+    return jnp.broadcast_to(preference, (n, preference.shape[-1]))
+
+
+class Networks(NamedTuple):
+    """The critic and actor modules; ``action_scale`` widens the actor's tanh range before the env's clip
+    (see ``sample_action``)."""
+
+    critic: TwinVectorCritic
+    actor: TanhGaussianActor
+    action_scale: float = 1.0
+
+    def sample(self, actor_params, obs, preference, key):
+        """Actions ``(N, action)`` and log-probabilities ``(N,)`` of pi(. | obs, w) for one preference w."""
+        return sample_action(key, *self.actor.apply(actor_params, obs, tile(preference, obs.shape[0])),
+                             self.action_scale)
+
+    def act(self, actor_params, obs, preference):
+        """The deterministic (evaluation) actions ``(N, action)`` for one preference."""
+        mean, _ = self.actor.apply(actor_params, obs, tile(preference, obs.shape[0]))
+        return deterministic_action(mean, self.action_scale)
+
+
+@struct.dataclass
+class Params:
+    """critic, target_critic: twin vector critics; actor; log_alpha: ``[E]`` one temperature per expert;
+    action_scale (static): the actor's, so ``networks_for`` can rebuild the policy from the parameters."""
+
+    critic: Any
+    target_critic: Any
+    actor: Any
+    log_alpha: jax.Array
+    action_scale: float = struct.field(pytree_node=False, default=1.0)
+
+
+def _layer_sizes(module_params) -> list[tuple[int, int]]:
+    """(inputs, outputs) of each Dense layer of an MLP's parameters, in order (a twin axis is ignored)."""
+    mlp = module_params
+    while "Dense_0" not in mlp:  # {"params": {"MLP_0": {...}}}, or with the twins' vmap level between
+        (mlp,) = mlp.values()
+    layers = sorted(mlp, key=lambda name: int(name.split("_")[1]))
+    return [tuple(mlp[name]["kernel"].shape[-2:]) for name in layers]
+
+
+def networks_of_sizes(hidden_sizes, reward_dim: int, action_size: int, action_scale: float = 1.0) -> Networks:
+    """Fresh critic and actor modules of the given layer widths for an env's reward and action sizes."""
+    return Networks(TwinVectorCritic(hidden_sizes, reward_dim), TanhGaussianActor(hidden_sizes, action_size),
+                    action_scale)
+
+
+def networks_for(params: Params) -> Networks:
+    """The networks ``params`` belong to, read from their shapes: hidden sizes, action and reward sizes."""
+    actor_layers, critic_layers = _layer_sizes(params.actor), _layer_sizes(params.critic)
+    hidden = tuple(out for _, out in actor_layers[:-1])
+    return networks_of_sizes(hidden, critic_layers[-1][1], actor_layers[-1][1] // 2, params.action_scale)
+
+
+def observation_size(params: Params) -> int:
+    """The observation size the actor of ``params`` takes (its input is the observation and the preference)."""
+    return _layer_sizes(params.actor)[0][0] - _layer_sizes(params.critic)[-1][1]

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import csv
-import dataclasses
 import json
 import os
 import time
@@ -47,7 +46,7 @@ class RunLog:
         self.step_name = step_name
         os.makedirs(self.run_dir, exist_ok=True)
         with open(os.path.join(self.run_dir, "config.json"), "w") as f:
-            json.dump(dataclasses.asdict(config), f, indent=2)
+            json.dump(config.to_dict(), f, indent=2)
         self.csv_path = os.path.join(self.run_dir, "metrics.csv")
         self._truncate_csv(resume_step)
         self.writer = SummaryWriter(os.path.join(self.run_dir, "tensorboard"))
@@ -82,7 +81,7 @@ class RunLog:
         for row in rows:
             for name, value in row.items():
                 if name not in (self.step_name, "expert", "preference"):
-                    self.writer.add_scalar(f"expert_{row['expert']}/{name}", value, step)
+                    self.writer.add_scalar(f"preference {row['preference']}/{name}", value, step)
         self.writer.flush()
         self.bar.update(step - self.bar.n)
         if summary:

@@ -1,6 +1,7 @@
 """The host loop of a chunked training run: jitted chunks, with logging, checkpoints and resume between them.
 
-A trainer gives pure ``init(key) -> state`` and ``run_chunk(state, beta) -> (state, metrics)``; the state
+A trainer gives pure ``init(key) -> state`` and ``run_chunk(state, hyper) -> (state, metrics)`` and the
+config's swept values ``hyper``; the state
 carries everything (parameters, optimiser states, replay buffers, RNG keys) and the attributes
 ``best_params`` and ``best_return``. After every chunk the state is checkpointed, so a killed run resumes
 from its last chunk and ends with the same result as an uninterrupted one.
@@ -42,8 +43,9 @@ def run_chunks(trainer, config, run_dir: str | None = None, resume: bool = False
     start = time.perf_counter()
     state = jax.jit(trainer.init)(jax.random.PRNGKey(config.seed))
     run_chunk = jax.jit(trainer.run_chunk)
-    beta = jnp.float32(config.beta)
-    steps_per_chunk = config.eval_interval
+    hyper = {name: jnp.float32(value) for name, value in trainer.hyper.items()}
+    label = " ".join([config.algo, *(f"{name}={value}" for name, value in trainer.hyper.items())])
+    steps_per_chunk = config.offpolicy.eval_interval
     total_steps = steps_per_chunk * trainer.num_chunks
     history, first_chunk = [], 0
     checkpoints = runlog = None
@@ -61,7 +63,7 @@ def run_chunks(trainer, config, run_dir: str | None = None, resume: bool = False
         runlog = RunLog(run_dir, config, total_steps, resume_step=first_chunk * steps_per_chunk, progress=progress)
     try:
         for chunk in range(first_chunk, trainer.num_chunks):
-            new_state, metrics = run_chunk(state, beta)
+            new_state, metrics = run_chunk(state, hyper)
             metrics = jax.device_get(metrics)
             step = (chunk + 1) * steps_per_chunk
             bad = sorted(name for name, value in metrics.items() if not np.all(np.isfinite(value)))
@@ -81,7 +83,6 @@ def run_chunks(trainer, config, run_dir: str | None = None, resume: bool = False
                     checkpoints.save_best(step, state.best_params,
                                           {"best_return": np.asarray(state.best_return).tolist()})
             if log is not None:
-                label = f"{config.algo} beta={config.beta}" if config.algo == "moiq" else config.algo
                 log(f"[{label}] steps {step}: {_summary(metrics)} "
                     f"({time.perf_counter() - start:.0f}s)")
             if on_chunk is not None:

@@ -8,6 +8,7 @@ import pytest
 from moiq_jax import Config, envs, train
 from moiq_jax.algos import admm, tabular
 from moiq_jax.experts import dst_oracle
+from moiq_jax.train import validate
 
 
 def test_closed_form_x_update_matches_numerical_argmax():
@@ -45,11 +46,11 @@ def test_one_expert_small_rho_reduces_to_tabular_max_ent_irl():
     scalar_l2 = l2 / float(w @ w)
     q = jnp.zeros((mdp.num_states, mdp.num_actions))
     returns = []
-    for _ in range(config.rounds):
-        policy = jax.nn.softmax(q / config.temperature, axis=-1)
+    for _ in range(config.admm.rounds):
+        policy = jax.nn.softmax(q / config.admm.temperature, axis=-1)
         reward = (expert[0] - tabular.occupancy(policy, mdp, config.gamma)) / scalar_l2
-        q = tabular.soft_value_iteration(reward, mdp, config.gamma, config.temperature, q)
-        vector, _ = tabular.greedy_rollout(jax.nn.softmax(q / config.temperature, axis=-1), mdp)
+        q = tabular.soft_value_iteration(reward, mdp, config.gamma, config.admm.temperature, q)
+        vector, _ = tabular.greedy_rollout(jax.nn.softmax(q / config.admm.temperature, axis=-1), mdp)
         returns.append(float(vector @ w))
     np.testing.assert_allclose(metrics["return"][:, 0], returns, atol=1e-3)
 
@@ -97,10 +98,10 @@ def test_oracle_demonstrations_reach_the_optimal_treasure_on_a_shortest_path(nam
 def test_train_reaches_optimal_treasures_on_mini_map():
     config = Config(env="dst-mini", algo="admm", preferences=((0.9, 0.1), (0.1, 0.9)), gamma=0.999)
     result = train(config)
-    np.testing.assert_allclose(result.metrics["return"][0, -1], result.optimal_return, atol=1e-3)
-    np.testing.assert_allclose(result.metrics["treasure"][0, -1], [16.8, 1.0], atol=1e-4)
-    assert result.metrics["consensus_gap"][0, -1] < 1e-3  # the experts agree on one reward
-    assert np.all(result.metrics["reward_correlation"][0, -1] > 0.3)
+    np.testing.assert_allclose(result.history["return"][-1], result.extras["optimal_return"], atol=1e-3)
+    np.testing.assert_allclose(result.history["treasure"][-1], [16.8, 1.0], atol=1e-4)
+    assert result.history["consensus_gap"][-1] < 1e-3  # the experts agree on one reward
+    assert np.all(result.history["reward_correlation"][-1] > 0.3)
 
 
 def test_ppo_inner_rl_reaches_optimal_treasures_on_mini_map():
@@ -109,14 +110,14 @@ def test_ppo_inner_rl_reaches_optimal_treasures_on_mini_map():
     config = Config(env="dst-mini", algo="admm", preferences=((0.9, 0.1), (0.1, 0.9)), gamma=0.999,
                     inner_rl="ppo")
     result = train(config)
-    np.testing.assert_allclose(result.metrics["treasure"][0, -1], [16.8, 1.0], atol=1e-4)
-    np.testing.assert_allclose(result.metrics["return"][0, -1], result.optimal_return, atol=1e-3)
+    np.testing.assert_allclose(result.history["treasure"][-1], [16.8, 1.0], atol=1e-4)
+    np.testing.assert_allclose(result.history["return"][-1], result.extras["optimal_return"], atol=1e-3)
 
 
 def test_admm_config_errors_are_clear():
     with pytest.raises(ValueError, match="inner_rl"):
-        Config(env="dst", algo="admm", inner_rl="sac").validate()
+        validate(Config(env="dst", algo="admm", inner_rl="sac"))
     with pytest.raises(ValueError, match="discrete DST"):
-        Config(env="cdst", algo="admm").validate()
+        train(Config(env="cdst", algo="admm"))
     with pytest.raises(ValueError, match="rho"):
-        Config(env="dst", algo="admm", rho=0.0).validate()
+        validate(Config(env="dst", algo="admm", rho=0.0))

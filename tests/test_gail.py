@@ -12,6 +12,7 @@ from moiq_jax.algos import gail
 from moiq_jax.checkpoint import Checkpoints
 from moiq_jax.config import tuned
 from moiq_jax.experts.cdst_oracle import expert_returns
+from moiq_jax.train import validate
 
 LOGITS = np.array([-30.0, -3.0, -0.5, 0.0, 0.2, 2.0, 8.0])
 
@@ -52,7 +53,8 @@ def test_update_separates_expert_from_policy_actions_and_reward_is_in_every_obje
 
 def test_validate_rejects_a_non_positive_discriminator_learning_rate():
     with pytest.raises(ValueError, match="disc_lr"):
-        tuned("cdst", algo="gail", disc_lr=0.0).validate()
+        validate(tuned("cdst", algo="gail", disc_lr=0.0))
+    tuned("cdst", algo="moiq", disc_lr=0.0).validate(sections=("offpolicy", "moiq"))  # moiq has no discriminator
 
 
 @pytest.fixture(scope="module")
@@ -82,6 +84,6 @@ def test_gail_checkpoints_hold_the_discriminator(cdst_gail):
     checkpoints = Checkpoints(run_dir / "checkpoints")
     restored, meta = checkpoints.restore(final_state)
     checkpoints.close()
-    assert meta["chunk"] == 4 and restored.discriminator is not None
-    for a, b in zip(jax.tree_util.tree_leaves(restored.discriminator), jax.tree_util.tree_leaves(final_state.discriminator)):
+    assert meta["chunk"] == 4 and restored.extra is not None
+    for a, b in zip(jax.tree_util.tree_leaves(restored.extra), jax.tree_util.tree_leaves(final_state.extra)):
         np.testing.assert_array_equal(a, b)

@@ -6,16 +6,26 @@ import numpy as np
 import optax
 import pytest
 
-from moiq_jax.algos import moiq
-from moiq_jax.networks import TanhGaussianActor, TwinVectorCritic, sample_tanh_gaussian, tanh_gaussian_log_prob
+from moiq_jax.algos import actor_critic, moiq
+from moiq_jax.networks import (
+    Networks,
+    TanhGaussianActor,
+    TwinVectorCritic,
+    sample_tanh_gaussian,
+    tanh_gaussian_log_prob,
+)
 
-HYPER = moiq.Hyper(gamma=0.9, alpha_reg=0.5, target_entropy=-2.0)
-NETS = moiq.Networks(TwinVectorCritic((16, 16), 2), TanhGaussianActor((16, 16), 2))
+GAMMA, ALPHA_REG = 0.9, 0.5
+NETS = Networks(TwinVectorCritic((16, 16), 2), TanhGaussianActor((16, 16), 2))
+
+
+def critic_loss(critic, params, batches, prefs, beta, key, use_target=True):
+    return moiq.critic_loss(critic, NETS, params, batches, prefs, beta, key, GAMMA, ALPHA_REG, use_target)
 
 
 def _learner(preferences, key=0):
-    opt = moiq.Optimisers(optax.adam(1e-3), optax.adam(1e-3), optax.adam(1e-3))
-    learner = moiq.init_learner(NETS, opt, jax.random.PRNGKey(key), 3, 2, preferences, init_alpha=0.2)
+    opt = actor_critic.Optimisers(optax.adam(1e-3), optax.adam(1e-3), optax.adam(1e-3))
+    learner = actor_critic.init_learner(NETS, opt, jax.random.PRNGKey(key), 3, 2, preferences, init_alpha=0.2)
     # A target critic different from the online one, so the test sees which is used where.
     target = NETS.critic.init(jax.random.PRNGKey(key + 100), jnp.zeros((1, 3)), jnp.zeros((1, 2)), preferences[:1])
     return learner.replace(params=learner.params.replace(target_critic=target)), opt
@@ -45,13 +55,13 @@ def _iq_learn_reference(critic, params, alpha, batch, w, key, use_target=True):
         return jnp.min(NETS.critic.apply(critic_params, obs, action, ws) @ w, axis=0) - alpha * log_prob
 
     v = scalar_v(critic, batch["obs"], current_key)
-    y = HYPER.gamma * (1 - batch["done"]) * scalar_v(params.target_critic if use_target else critic,
+    y = GAMMA * (1 - batch["done"]) * scalar_v(params.target_critic if use_target else critic,
                                                      batch["next_obs"], next_key)
     losses = []
     for q in NETS.critic.apply(critic, batch["obs"], batch["action"], ws) @ w:
         r = q - y
         expert = batch["is_expert"]
-        losses.append(-r[expert].mean() + (v - y).mean() + (r**2).mean() / (4 * HYPER.alpha_reg))
+        losses.append(-r[expert].mean() + (v - y).mean() + (r**2).mean() / (4 * ALPHA_REG))
     return sum(losses) / 2
 
 
@@ -60,14 +70,13 @@ def test_one_expert_loss_and_gradient_are_iq_learns_for_any_beta(use_target):
     prefs = jnp.array([[0.7, 0.3]])
     learner, _ = _learner(prefs)
     params, batches, key = learner.params, _batches(1, 8), jax.random.PRNGKey(5)
-    hyper = HYPER._replace(use_target=use_target)
     reference = lambda critic: _iq_learn_reference(
         critic, params, 0.2, jax.tree_util.tree_map(lambda x: x[0], batches), prefs[0], jax.random.split(key, 1)[0],
         use_target)
     expected, expected_grad = jax.value_and_grad(reference)(params.critic)
     for beta in (0.0, 5.0):  # one expert has no neighbours: the penalty vanishes
-        (loss, metrics), grad = jax.value_and_grad(moiq.critic_loss, has_aux=True)(
-            params.critic, NETS, params, batches, prefs, beta, key, hyper)
+        (loss, metrics), grad = jax.value_and_grad(critic_loss, has_aux=True)(
+            params.critic, params, batches, prefs, beta, key, use_target)
         np.testing.assert_allclose(loss, expected, rtol=1e-5)
         assert float(metrics["penalty"]) == 0.0
         for got, want in zip(jax.tree_util.tree_leaves(grad), jax.tree_util.tree_leaves(expected_grad)):
@@ -98,8 +107,8 @@ def test_critic_loss_penalty_ties_experts_and_beta_scales_it():
     prefs = jnp.array([[0.9, 0.1], [0.5, 0.5], [0.1, 0.9]])
     learner, _ = _learner(prefs)
     batches, key = _batches(3, 8), jax.random.PRNGKey(2)
-    loss0, m0 = moiq.critic_loss(learner.params.critic, NETS, learner.params, batches, prefs, 0.0, key, HYPER)
-    loss5, _ = moiq.critic_loss(learner.params.critic, NETS, learner.params, batches, prefs, 5.0, key, HYPER)
+    loss0, m0 = critic_loss(learner.params.critic, learner.params, batches, prefs, 0.0, key)
+    loss5, _ = critic_loss(learner.params.critic, learner.params, batches, prefs, 5.0, key)
     assert float(m0["penalty"]) > 0
     np.testing.assert_allclose(loss5 - loss0, 5.0 * m0["penalty"], rtol=1e-4)
     np.testing.assert_allclose(loss0, m0["iq_loss"].sum(), rtol=1e-6)
@@ -123,18 +132,20 @@ def test_penalty_compares_every_experts_rewards_on_the_shared_rows():
         q_next = NETS.critic.apply(params.target_critic, rows["next_obs"], jnp.tanh(pre_tanh), ws)  # (2, 14, 2)
         q_next = jnp.where((q_next[0] @ prefs[j] <= q_next[1] @ prefs[j])[:, None], q_next[0], q_next[1])
         v_next = q_next - 0.2 * tanh_gaussian_log_prob(pre_tanh, mean, log_std)[:, None]
-        r = NETS.critic.apply(params.critic, rows["obs"], rows["action"], ws) - HYPER.gamma * (
+        r = NETS.critic.apply(params.critic, rows["obs"], rows["action"], ws) - GAMMA * (
             1 - rows["done"])[:, None] * v_next
         rewards.append(np.asarray(r[:, 8:]))  # (2 twins, 6 common rows, 2)
     expected = np.mean(sum(np.linalg.norm(rewards[j + 1] - rewards[j], axis=-1) for j in range(2)))
-    _, metrics = moiq.critic_loss(params.critic, NETS, params, batches, prefs, 5.0, key, HYPER)
+    _, metrics = critic_loss(params.critic, params, batches, prefs, 5.0, key)
     np.testing.assert_allclose(metrics["penalty"], expected, rtol=1e-4)
 
 
 def test_update_runs_jitted_for_all_experts_and_moves_targets_slowly():
     prefs = jnp.array([[0.9, 0.1], [0.5, 0.5], [0.1, 0.9]])
     learner, opt = _learner(prefs)
-    step = jax.jit(lambda lrn, b, k: moiq.update(lrn, NETS, opt, b, prefs, 5.0, k, HYPER, 0.005, True))
+    settings = actor_critic.Settings(target_entropy=-2.0, tau=0.005, learn_alpha=True)
+    objective = lambda critic, params, b, p, k: critic_loss(critic, params, b, p, 5.0, k)
+    step = jax.jit(lambda lrn, b, k: actor_critic.update(lrn, NETS, opt, b, prefs, k, settings, objective))
     new, metrics = step(learner, _batches(3, 8), jax.random.PRNGKey(4))
     assert metrics["iq_loss"].shape == (3,) and metrics["alpha"].shape == (3,)
     assert all(np.isfinite(float(metrics[k])) for k in ("critic_loss", "actor_loss", "penalty"))

@@ -10,7 +10,9 @@ import numpy as np
 import pytest
 
 import moiq_jax
-from moiq_jax.algos import moiq_train
+from moiq_jax.algos.offpolicy import make_trainer
+from moiq_jax.experts.loading import load_demonstrations
+from moiq_jax.train import ALGORITHMS, validate
 
 TINY = moiq_jax.Config(total_steps=40, eval_interval=20, num_envs=2, learning_starts=10, batch_size=8,
                        hidden_sizes=(8,), buffer_size=64, num_demos=1)
@@ -18,12 +20,12 @@ TINY = moiq_jax.Config(total_steps=40, eval_interval=20, num_envs=2, learning_st
 
 @pytest.fixture(scope="module")
 def demos():
-    return moiq_train.load_demonstrations(TINY)
+    return load_demonstrations(TINY)
 
 
 @pytest.fixture(scope="module")
 def trained(demos):
-    return moiq_train.train(TINY.replace(action_scale=1.1), demos, log=None)
+    return moiq_jax.train(TINY.replace(action_scale=1.1), demos, log=None)
 
 
 def test_train_smoke_moiq(trained):
@@ -47,53 +49,60 @@ def test_evaluate_reproduces_the_best_models_training_evaluation(trained):
 
 
 def test_iq_learn_trains_one_model_per_expert_without_penalty(demos):
-    result = moiq_train.train(TINY.replace(algo="iq_learn"), demos, log=None)
+    result = moiq_jax.train(TINY.replace(algo="iq_learn"), demos, log=None)
     assert result.history["iq_loss"].shape == (2, 3)
-    assert np.all(result.history["penalty"] == 0)
+    assert "penalty" not in result.history
     assert result.final_params.log_alpha.shape == (3, 1)  # three models of one expert each
 
 
 def test_validate_rejects_negative_beta():
     with pytest.raises(ValueError, match="beta"):
-        TINY.replace(beta=-1.0).validate()
+        validate(TINY.replace(beta=-1.0))
 
 
 @pytest.fixture(scope="module")
 def swept(demos):
-    return moiq_train.sweep(TINY, beta=[0.0, 5.0], seed=[3], demos=demos)
+    return moiq_jax.sweep(TINY, beta=[0.0, 5.0], seed=[3], demos=demos)
 
 
 def test_sweep_equals_separate_runs(demos, swept):
-    train = jax.jit(moiq_train.make_train(TINY, demos).train)
+    train = jax.jit(make_trainer(TINY, ALGORITHMS["moiq"], demos).train)
+    np.testing.assert_array_equal(swept.runs["beta"], [0.0, 5.0])
+    np.testing.assert_array_equal(swept.runs["seed"], [3, 3])
     for run, beta in enumerate([0.0, 5.0]):
-        state, history = train(jax.random.PRNGKey(3), jnp.float32(beta))
-        np.testing.assert_allclose(swept["history"]["critic_loss"][run], history["critic_loss"], rtol=1e-4, atol=1e-5)
-        np.testing.assert_allclose(swept["history"]["eval_return"][run], history["eval_return"], rtol=1e-4, atol=1e-4)
-        np.testing.assert_allclose(swept["best_return"][run], state.best_return, rtol=1e-5)
-    assert not np.allclose(swept["history"]["critic_loss"][0], swept["history"]["critic_loss"][1])
+        state, history = train(jax.random.PRNGKey(3), {"beta": jnp.float32(beta)})
+        np.testing.assert_allclose(swept.history["critic_loss"][run], history["critic_loss"], rtol=1e-4, atol=1e-5)
+        np.testing.assert_allclose(swept.history["eval_return"][run], history["eval_return"], rtol=1e-4, atol=1e-4)
+        np.testing.assert_allclose(swept.best_return[run], state.best_return, rtol=1e-5)
+    assert not np.allclose(swept.history["critic_loss"][0], swept.history["critic_loss"][1])
+
+
+def test_sweep_rejects_values_the_algorithm_does_not_have(demos):
+    with pytest.raises(ValueError, match="a sweep of iq_learn varies seed; got \\['beta'\\]"):
+        moiq_jax.sweep(TINY.replace(algo="iq_learn"), beta=[0.0, 5.0], demos=demos)
 
 
 def test_sweep_sharded_over_two_host_devices_matches(swept):
     script = (
-        "import jax, moiq_jax; from moiq_jax import Config; from moiq_jax.algos import moiq_train; "
-        "moiq_train.split_cpu_into_devices(2); assert jax.device_count() == 2; "
-        f"s = moiq_jax.sweep({TINY!r}, beta=[0.0, 5.0], seed=[3]); "
-        "assert len(jax.tree_util.tree_leaves(s['best_params'])[0].sharding.device_set) == 2; "
-        "print(s['history']['critic_loss'].tolist())"
+        "import jax, moiq_jax; from moiq_jax import Config; from moiq_jax.runtime import split_cpu_into_devices; "
+        "split_cpu_into_devices(2); assert jax.device_count() == 2; "
+        f"s = moiq_jax.sweep(Config(**{TINY.to_dict()!r}), beta=[0.0, 5.0], seed=[3]); "
+        "assert len(jax.tree_util.tree_leaves(s.best_params)[0].sharding.device_set) == 2; "
+        "print(s.history['critic_loss'].tolist())"
     )
     env = {**{k: v for k, v in os.environ.items() if k != "XLA_FLAGS"}, "PYTHONPATH": os.getcwd()}
     out = subprocess.run([sys.executable, "-c", script], check=False, env=env, capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stderr[-2000:]
     sharded = np.array(eval(out.stdout.strip().splitlines()[-1]))
-    np.testing.assert_allclose(sharded, swept["history"]["critic_loss"], rtol=1e-4, atol=1e-5)
+    np.testing.assert_allclose(sharded, swept.history["critic_loss"], rtol=1e-4, atol=1e-5)
 
 
 def test_num_demos_takes_the_first_episodes_of_a_demos_file(tmp_path):
     source = moiq_jax.experts.oracle_demonstrations("dst-mini", [(0.9, 0.1), (0.1, 0.9)], num_demos=4, seed=3)
     source.save(tmp_path / "d.npz")
     config = moiq_jax.Config(env="dst-mini", preferences=((0.9, 0.1), (0.1, 0.9)), demos=str(tmp_path / "d.npz"))
-    one = moiq_train.load_demonstrations(config.replace(num_demos=1))
+    one = load_demonstrations(config.replace(num_demos=1))
     assert one.num_episodes == 1
     np.testing.assert_array_equal(one.actions[:, 0], source.actions[:, 0])
     with pytest.raises(ValueError, match="hold 4 episodes per expert, fewer than num_demos = 5"):
-        moiq_train.load_demonstrations(config.replace(num_demos=5))
+        load_demonstrations(config.replace(num_demos=5))

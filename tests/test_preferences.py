@@ -5,6 +5,7 @@ import pytest
 
 from moiq_jax import Config
 from moiq_jax.preferences import check_preferences, preference_sweep
+from moiq_jax.train import validate
 
 
 @pytest.mark.parametrize(
@@ -46,7 +47,7 @@ def test_sweep_is_the_papers_19_preferences():
 )
 def test_config_validation(changes, message):
     with pytest.raises(ValueError, match=message):
-        Config().replace(**changes).validate()
+        validate(Config().replace(**changes))
 
 
 def test_config_turns_lists_into_tuples():

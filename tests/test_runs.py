@@ -88,12 +88,14 @@ def parse(*argv):
 def test_flags_set_config_fields_and_override_a_config_file(tmp_path):
     cfg = parse("--beta", "3", "--preferences", "0.9,0.1", "0.1,0.9", "--no-learn-alpha", "--hidden-sizes", "64", "64")
     assert cfg == tuned("cdst", beta=3.0, preferences=((0.9, 0.1), (0.1, 0.9)), learn_alpha=False, hidden_sizes=(64, 64))
-    assert parse().hidden_sizes == tuned("cdst").hidden_sizes  # the CLI starts from the env's tuned settings
+    assert parse().offpolicy.hidden_sizes == tuned("cdst").offpolicy.hidden_sizes  # the CLI starts from the env's tuned settings
     (tmp_path / "run.yaml").write_text("env: dst-mini\nalgo: admm\nrounds: 4\npreferences: [[0.9, 0.1], [0.1, 0.9]]\n")
     cfg = parse("--config", str(tmp_path / "run.yaml"), "--rounds", "6")
-    assert (cfg.env, cfg.algo, cfg.rounds, cfg.preferences) == ("dst-mini", "admm", 6, ((0.9, 0.1), (0.1, 0.9)))
+    assert (cfg.env, cfg.algo, cfg.admm.rounds, cfg.preferences) == ("dst-mini", "admm", 6, ((0.9, 0.1), (0.1, 0.9)))
     (tmp_path / "run.json").write_text(json.dumps({"beta": 0.0}))
-    assert parse("--config", str(tmp_path / "run.json")).beta == 0.0
+    assert parse("--config", str(tmp_path / "run.json")).moiq.beta == 0.0
+    cfg = parse("--env-backend", "mujoco", "--ppo-iterations", "3")
+    assert cfg.env_backend == "mujoco" and cfg.admm.ppo.iterations == 3
 
 
 def test_bad_config_files_name_the_problem(tmp_path):

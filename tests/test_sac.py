@@ -8,19 +8,19 @@ import optax
 import pytest
 
 import moiq_jax
-from moiq_jax.algos import moiq, sac
+from moiq_jax.algos import actor_critic, sac
 from moiq_jax.config import tuned
 from moiq_jax.experts import sac as sac_experts
 from moiq_jax.experts.cdst_oracle import expert_returns
+from moiq_jax.networks import networks_of_sizes
 
-HYPER = moiq.Hyper(gamma=0.9, alpha_reg=0.5, target_entropy=-2.0)
-NETS = moiq.networks_of_sizes((16, 16), reward_dim=2, action_size=2)
+NETS = networks_of_sizes((16, 16), reward_dim=2, action_size=2)
 PREFS = jnp.array([[0.9, 0.1], [0.2, 0.8]])
 
 
 def _learner(lr=1e-3):
-    opt = moiq.Optimisers(optax.adam(lr), optax.adam(lr), optax.adam(lr))
-    learner = moiq.init_learner(NETS, opt, jax.random.PRNGKey(0), 3, 2, PREFS, init_alpha=0.3)
+    opt = actor_critic.Optimisers(optax.adam(lr), optax.adam(lr), optax.adam(lr))
+    learner = actor_critic.init_learner(NETS, opt, jax.random.PRNGKey(0), 3, 2, PREFS, init_alpha=0.3)
     target = NETS.critic.init(jax.random.PRNGKey(7), jnp.zeros((1, 3)), jnp.zeros((1, 2)), PREFS[:1])
     return learner.replace(params=learner.params.replace(target_critic=target)), opt
 
@@ -35,7 +35,7 @@ def _batches(n, key=1):
 def test_critic_loss_is_the_soft_td_error_per_objective_with_the_target_critic():
     learner, _ = _learner()
     params, batches, key = learner.params, _batches(8), jax.random.PRNGKey(3)
-    loss, metrics = sac.critic_loss(params.critic, NETS, params, batches, PREFS, 123.0, key, HYPER)
+    loss, metrics = sac.critic_loss(params.critic, NETS, params, batches, PREFS, key, 0.9)
 
     expected = []
     for e, k in enumerate(jax.random.split(key, 2)):  # written out: twin Q's, clipped double-Q soft target
@@ -56,8 +56,9 @@ def test_vector_critic_learns_each_objectives_terminal_reward():
     learner, opt = _learner(lr=3e-3)
     batches = {**_batches(16), "done": jnp.ones((2, 16))}
     batches["reward"] = jnp.stack([batches["obs"][..., 0], -2.0 * batches["action"][..., 1]], axis=-1)
-    step = jax.jit(lambda lrn, k: moiq.update(lrn, NETS, opt, batches, PREFS, 0.0, k, HYPER, 0.005, True,
-                                              sac.critic_loss))
+    settings = actor_critic.Settings(target_entropy=-2.0, tau=0.005, learn_alpha=True)
+    objective = lambda critic, params, b, p, k: sac.critic_loss(critic, NETS, params, b, p, k, 0.9)
+    step = jax.jit(lambda lrn, k: actor_critic.update(lrn, NETS, opt, batches, PREFS, k, settings, objective))
     for k in jax.random.split(jax.random.PRNGKey(5), 1500):
         learner, _ = step(learner, k)
     for e in range(2):

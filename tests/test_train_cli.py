@@ -12,9 +12,10 @@ import numpy as np
 import pytest
 
 import moiq_jax
-from moiq_jax.algos.moiq_train import make_train
+from moiq_jax.algos.offpolicy import make_trainer
 from moiq_jax.checkpoint import Checkpoints
 from moiq_jax.config import tuned
+from moiq_jax.train import algorithm_of
 
 MOIQ = shutil.which("moiq")
 pytestmark = pytest.mark.skipif(MOIQ is None, reason="the package is not installed (pip install -e .)")
@@ -27,7 +28,7 @@ FLAGS = [*(arg for name, value in SMALL.items() for arg in ("--" + name.replace(
 
 
 def latest_state(run_dir, config):
-    like = jax.jit(make_train(config).init)(jax.random.PRNGKey(config.seed))
+    like = jax.jit(make_trainer(config, algorithm_of(config)).init)(jax.random.PRNGKey(config.seed))
     checkpoints = Checkpoints(os.path.join(run_dir, "checkpoints"))
     try:
         return checkpoints.latest_step(), checkpoints.restore(like)[0]
@@ -53,7 +54,7 @@ def test_a_killed_run_resumes_to_the_same_result(tmp_path):
     process.send_signal(signal.SIGKILL)
     process.wait()
     killed_at, _ = latest_state(run_dir, config)
-    assert 0 < killed_at < config.total_steps, f"the run was not stopped mid-way (last checkpoint {killed_at})"
+    assert 0 < killed_at < config.offpolicy.total_steps, f"the run was not stopped mid-way (last checkpoint {killed_at})"
 
     out = subprocess.run([MOIQ, "train", "--resume", str(run_dir), "--no-progress"], check=False,
                          capture_output=True, text=True, timeout=300)
@@ -64,7 +65,7 @@ def test_a_killed_run_resumes_to_the_same_result(tmp_path):
     assert (run_dir / "metrics.csv").read_text() == (reference_dir / "metrics.csv").read_text()
     step_a, reference = latest_state(reference_dir, config)
     step_b, resumed = latest_state(run_dir, config)
-    assert step_a == step_b == config.total_steps
+    assert step_a == step_b == config.offpolicy.total_steps
     for a, b in zip(jax.tree.leaves(reference), jax.tree.leaves(resumed)):
         if jax.dtypes.issubdtype(a.dtype, jax.dtypes.prng_key):
             a, b = jax.random.key_data(a), jax.random.key_data(b)

@@ -24,6 +24,7 @@ reward, exactly from the tables.
 
 from __future__ import annotations
 
+import time
 from typing import NamedTuple
 
 import jax
@@ -31,13 +32,14 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
-from moiq_jax import envs
 from moiq_jax.algos import tabular
+from moiq_jax.algos.inner_rl import InnerRL, inner_rl, soft_vi_agent  # noqa: F401 (also admm's public names)
 from moiq_jax.config import Config
 from moiq_jax.evaluate import pearson
 from moiq_jax.experts import dst_oracle
-from moiq_jax.experts.demonstrations import Demonstrations
+from moiq_jax.experts.loading import load_demonstrations
 from moiq_jax.preferences import check_preferences, preference_sweep
+from moiq_jax.result import Result
 
 
 def x_update(gain: jax.Array, common: jax.Array, dual: jax.Array, rho: jax.Array, reward_l2: float,
@@ -66,48 +68,21 @@ def reward_gains(preferences: jax.Array, expert_occupancy: jax.Array, policy_occ
 
 
 def consensus_admm(state: ConsensusState, gains: jax.Array, metric: jax.Array, config: Config) -> ConsensusState:
-    """``config.admm_iterations`` iterations of eq. 7 / eq. 3, the x-update vmapped over experts.
+    """``admm_iterations`` iterations of eq. 7 / eq. 3, the x-update vmapped over experts.
 
     The proximal term uses the penalty ``rho * metric[S + 1, A, 1]`` per entry (the same for all experts,
     so the consensus is still the plain mean); ``metric = 1`` is the paper's ``rho``."""
     update = jax.vmap(x_update, in_axes=(0, None, 0, None, None, None))
-    rho = config.rho * metric
+    c = config.admm
+    rho = c.rho * metric
 
     def iteration(state, _):
-        rewards = update(gains, state.common, state.duals, rho, config.reward_l2, config.reward_bound)
+        rewards = update(gains, state.common, state.duals, rho, c.reward_l2, c.reward_bound)
         common = rewards.mean(0)
         return ConsensusState(rewards, state.duals + rewards - common), None
 
-    state, _ = jax.lax.scan(iteration, state, None, length=config.admm_iterations)
+    state, _ = jax.lax.scan(iteration, state, None, length=c.admm_iterations)
     return state
-
-
-class InnerRL(NamedTuple):
-    """An RL solver for one expert on a tabular scalar reward, all functions pure (vmapped by the caller).
-
-    init(key) -> agent; improve(agent, reward[S + 1, A], key) -> agent; policy(agent) -> probs[S + 1, A].
-    """
-
-    init: callable
-    improve: callable
-    policy: callable
-
-
-def soft_vi_agent(mdp: tabular.TabularMDP, config: Config) -> InnerRL:
-    """Exact max-ent RL: the agent is its soft Q table, warm-started from the previous round."""
-    return InnerRL(
-        init=lambda key: jnp.zeros((mdp.num_states, mdp.num_actions)),
-        improve=lambda q, reward, key: tabular.soft_value_iteration(reward, mdp, config.gamma, config.temperature, q),
-        policy=lambda q: jax.nn.softmax(q / config.temperature, axis=-1),
-    )
-
-
-def inner_rl(mdp: tabular.TabularMDP, config: Config) -> InnerRL:
-    if config.inner_rl == "ppo":
-        from moiq_jax.algos.ppo import ppo_agent
-
-        return ppo_agent(mdp, config)
-    return soft_vi_agent(mdp, config)
 
 
 def evaluate_policies(policies, preferences, mdp: tabular.TabularMDP):
@@ -136,7 +111,7 @@ def make_train(config: Config, mdp: tabular.TabularMDP, preferences: jax.Array):
             policy_occupancy = jax.vmap(lambda p: tabular.occupancy(p, mdp, config.gamma))(policies)
             gains = reward_gains(preferences, expert_occupancy, policy_occupancy)
             # visit-count metric: without it the absorbing state (~90 visits) moves ~90x faster than a path step
-            metric = 1.0 + (expert_occupancy + policy_occupancy).mean(0)[..., None] if config.visit_metric else 1.0
+            metric = 1.0 + (expert_occupancy + policy_occupancy).mean(0)[..., None] if config.admm.visit_metric else 1.0
             consensus = consensus_admm(consensus, gains, metric, config)
             scalar = jnp.einsum("sad,ed->esa", consensus.common, preferences)
             agents = jax.vmap(agent.improve)(agents, scalar, jax.random.split(key, E))
@@ -151,7 +126,7 @@ def make_train(config: Config, mdp: tabular.TabularMDP, preferences: jax.Array):
             }
             return (consensus, agents), metrics
 
-        (consensus, _), metrics = jax.lax.scan(round_, (consensus, agents), jax.random.split(key, config.rounds))
+        (consensus, _), metrics = jax.lax.scan(round_, (consensus, agents), jax.random.split(key, config.admm.rounds))
         return consensus.common, metrics
 
     return train
@@ -162,40 +137,30 @@ def transfer(common_reward: jax.Array, mdp: tabular.TabularMDP, preferences: jax
     greedy true vector returns ``[P, d]``, scalarised returns ``[P]`` and lengths ``[P]``."""
 
     def solve(w):
-        q = tabular.soft_value_iteration(common_reward @ w, mdp, config.gamma, config.temperature)
-        return jax.nn.softmax(q / config.temperature, axis=-1)
+        q = tabular.soft_value_iteration(common_reward @ w, mdp, config.gamma, config.admm.temperature)
+        return jax.nn.softmax(q / config.admm.temperature, axis=-1)
 
     return evaluate_policies(jax.vmap(solve)(preferences), preferences, mdp)
 
 
-class ADMMResult(NamedTuple):
-    """Arrays with a leading seed axis. metrics: name -> ``[seeds, rounds, experts]`` (``vector_return``
-    adds ``d``; ``consensus_gap`` is ``[seeds, rounds]``). optimal_return ``[experts]``: the best scalarised
-    undiscounted return per expert preference. transfer: the 19 sweep preferences' greedy results on the
-    final common reward and their optimal returns."""
-
-    config: Config
-    preferences: np.ndarray
-    metrics: dict
-    optimal_return: np.ndarray
-    common_reward: np.ndarray
-    transfer: dict
-
-
-def train_seeds(config: Config, seeds) -> ADMMResult:
-    """Run ``config`` for every seed in one vmapped program. Each seed records its own
-    ``config.num_demos`` oracle demonstrations per expert (or all use ``config.demos``)."""
-    config.validate()
-    env = envs.make(config.env, absorbing=True)
+def train_seeds(config: Config, seeds) -> Result:
+    """Run ``config`` for every seed in one vmapped program (a ``Result`` with a run axis; ``extras``:
+    ``optimal_return [E]``, the best scalarised undiscounted return per expert preference, and
+    ``transfer``: the 19 sweep preferences' greedy results on the final common reward and their optimal
+    returns). Each seed records its own ``num_demos`` oracle demonstrations per expert (or all use
+    ``config.demos``)."""
+    config.validate(sections=ALGORITHM.sections)
+    if not config.env.startswith("dst"):
+        raise ValueError(f"algo 'admm' is tabular and needs a discrete DST env, got {config.env!r}")
+    start = time.perf_counter()
+    env = config.make_env(absorbing=True)
     sea_map = env.unwrapped.sea_map
     mdp = tabular.tabular_mdp(env)
     preferences = check_preferences(config.preferences, env.reward_dim)
     seeds = list(seeds)
     keys = jax.vmap(jax.random.PRNGKey)(jnp.asarray(seeds))
     if config.demos is not None:
-        demos = Demonstrations.load(config.demos, env)
-        if not np.allclose(demos.preferences, preferences):
-            raise ValueError(f"demos preferences {demos.preferences.tolist()} differ from the config's {preferences.tolist()}")
+        demos = load_demonstrations(config, env)
         occupancy = jnp.broadcast_to(tabular.demo_occupancy(demos, mdp, sea_map.cols, config.gamma),
                                      (len(seeds), len(preferences), mdp.num_states, mdp.num_actions))
     else:
@@ -212,18 +177,20 @@ def train_seeds(config: Config, seeds) -> ADMMResult:
     common, metrics = run(keys, occupancy)
     sweep = jnp.asarray(preference_sweep(19))
     returns, scalarised, lengths = jax.jit(jax.vmap(lambda r: transfer(r, mdp, sweep, config)))(common)
-    return ADMMResult(
-        config=config,
-        preferences=preferences,
-        metrics={k: np.asarray(v) for k, v in metrics.items()},
-        optimal_return=np.array([dst_oracle.optimal_value(sea_map, w) for w in preferences]),
-        common_reward=np.asarray(common),
-        transfer={
-            "preferences": np.asarray(sweep),
-            "vector_return": np.asarray(returns),
-            "return": np.asarray(scalarised),
-            "length": np.asarray(lengths),
-            "optimal_return": np.array([dst_oracle.optimal_value(sea_map, w) for w in np.asarray(sweep)]),
+    metrics = {k: np.asarray(v) for k, v in metrics.items()}
+    return Result(
+        config=config, preferences=preferences, history=metrics, final_params=np.asarray(common), best_params=None,
+        best_return=metrics["return"].mean(-1).max(-1), seconds=time.perf_counter() - start,
+        runs={"seed": np.asarray(seeds)},
+        extras={
+            "optimal_return": np.array([dst_oracle.optimal_value(sea_map, w) for w in preferences]),
+            "transfer": {
+                "preferences": np.asarray(sweep),
+                "vector_return": np.asarray(returns),
+                "return": np.asarray(scalarised),
+                "length": np.asarray(lengths),
+                "optimal_return": np.array([dst_oracle.optimal_value(sea_map, w) for w in np.asarray(sweep)]),
+            },
         },
     )
 
@@ -237,6 +204,11 @@ class _Demos(NamedTuple):
     lengths: jax.Array
 
 
-def train(config: Config) -> ADMMResult:
-    """Run consensus-ADMM MOIRL for ``config.seed``; arrays keep a seed axis of length 1."""
-    return train_seeds(config, [config.seed])
+class Tabular(NamedTuple):
+    """A tabular algorithm of the registry: the Config sections it reads and ``train_seeds``."""
+
+    sections: tuple[str, ...]
+    train_seeds: callable
+
+
+ALGORITHM = Tabular(sections=("admm",), train_seeds=train_seeds)

@@ -8,7 +8,7 @@ transitions (label 1) from the policy's (label 0); this is the convention of the
 growing without bound as a transition looks more expert-like. In the absorbing-state env every episode
 runs the full time limit, so a positive reward does not reward surviving longer (sec. 4.1.1).
 
-The generator is the experts' SAC (``algos.sac``) with the vector critic: the scalar reward is given in
+The generator is the experts' SAC (``sac.critic_loss``) with the vector critic: the scalar reward is given in
 every objective, so ``w . r`` is the reward itself because ``w`` sums to 1. Unlike ``imitation``, which
 stores each transition's reward when it is collected, the reward of a replayed transition is recomputed
 with the current discriminator (as Kostrikov et al.'s DAC does), so the generator never learns from a
@@ -26,6 +26,9 @@ import jax.numpy as jnp
 import optax
 from flax import struct
 
+from moiq_jax.algos import sac
+from moiq_jax.algos.offpolicy import TRANSITION_FIELDS, Algorithm, Extra, expert_and_policy_batch
+from moiq_jax.evaluate import pearson
 from moiq_jax.networks import MLP
 
 
@@ -88,3 +91,49 @@ def with_reward(module: Discriminator, params, transitions, reward_dim: int):
     ``reward_dim`` objectives, ``(N, reward_dim)``, so ``w . reward`` is that reward for every preference w."""
     reward = generator_reward(module.apply(params, transitions["obs"], transitions["action"]))
     return {**transitions, "reward": jnp.broadcast_to(reward[:, None], (*reward.shape, reward_dim))}
+
+
+def _extra_init(config, env):
+    module, optimiser = Discriminator(config.offpolicy.hidden_sizes), optax.adam(config.gail.disc_lr)
+    return lambda key, num_experts: jax.vmap(lambda k: init(module, optimiser, k, env.observation_size,
+                                                            env.action_size))(jax.random.split(key, num_experts))
+
+
+def _extra_update(config, env):
+    """Train each expert's discriminator on its batch, then hand SAC the policy rows with its reward."""
+    module, optimiser = Discriminator(config.offpolicy.hidden_sizes), optax.adam(config.gail.disc_lr)
+    batch_size = config.offpolicy.batch_size
+
+    def step(state, batches):
+        state, metrics = jax.vmap(lambda d, b: update(d, module, optimiser, b))(state, batches)
+        policy = {name: batches[name][:, batch_size:] for name in TRANSITION_FIELDS}
+        return state, jax.vmap(lambda p, b: with_reward(module, p, b, env.reward_dim))(state.params, policy), metrics
+
+    return step
+
+
+def reward_correlations(config, nets):
+    """At each evaluation: the discriminator's (scalar) reward against the true scalarised one on the
+    demonstrations (``reward_correlation``)."""
+    module = Discriminator(config.offpolicy.hidden_sizes)
+
+    def metrics(params, state, expert_data, prefs, key):
+        def correlation(disc_params, data_i, preference):
+            rewards = generator_reward(module.apply(disc_params, data_i["obs"], data_i["action"]))
+            return pearson(rewards, data_i["true_reward"] @ preference)
+
+        return {"reward_correlation": jax.vmap(correlation)(state.params, expert_data, prefs)}
+
+    return metrics
+
+
+def _objective(config):
+    def loss(critic_params, nets, params, batches, preferences, hyper, key):
+        return sac.critic_loss(critic_params, nets, params, batches, preferences, key, config.gamma)
+
+    return loss
+
+
+ALGORITHM = Algorithm(sections=("offpolicy", "gail"), learns_from_demos=True, one_model_per_expert=True,
+                      hyper=lambda config: {}, critic_loss=_objective, sample=expert_and_policy_batch,
+                      extra=Extra(_extra_init, _extra_update), reward_metrics=reward_correlations)

@@ -22,7 +22,7 @@ import jax
 import jax.numpy as jnp
 import optax
 
-from moiq_jax.algos.tabular import TabularMDP
+from moiq_jax.algos.tabular import InnerRL, TabularMDP
 from moiq_jax.config import Config
 
 
@@ -50,7 +50,7 @@ def value_scale(mdp: TabularMDP, config: Config) -> float:
     The critic predicts values in these units, so its targets are O(1) whatever the learned reward's scale
     (raw returns reach hundreds, and their gradients would swamp the policy's under the global-norm clip)."""
     horizon = sum(config.gamma**t for t in range(mdp.horizon))
-    return (config.reward_bound + config.temperature * float(jnp.log(mdp.num_actions))) * horizon
+    return (config.admm.reward_bound + config.admm.temperature * float(jnp.log(mdp.num_actions))) * horizon
 
 
 class PPOAgent(NamedTuple):
@@ -66,15 +66,14 @@ class Batch(NamedTuple):
     returns: jax.Array
 
 
-def ppo_agent(mdp: TabularMDP, config: Config):
-    """An ``InnerRL`` running ``config.ppo_iterations`` PPO updates per round, warm-started across rounds."""
-    from moiq_jax.algos.admm import InnerRL
-
-    net = ActorCritic(mdp.num_actions, config.ppo_hidden)
-    optimiser = optax.chain(optax.clip_by_global_norm(0.5), optax.adam(config.ppo_learning_rate))
+def ppo_agent(mdp: TabularMDP, config: Config) -> InnerRL:
+    """An ``InnerRL`` running ``ppo_iterations`` PPO updates per round, warm-started across rounds."""
+    ppo, temperature = config.admm.ppo, config.admm.temperature
+    net = ActorCritic(mdp.num_actions, ppo.hidden)
+    optimiser = optax.chain(optax.clip_by_global_norm(0.5), optax.adam(ppo.learning_rate))
     one_hot = jnp.eye(mdp.num_states)
-    batch_size = config.ppo_num_envs * mdp.horizon
-    minibatch = batch_size // config.ppo_minibatches
+    batch_size = ppo.num_envs * mdp.horizon
+    minibatch = batch_size // ppo.minibatches
     scale = value_scale(mdp, config)
 
     def tables(params):
@@ -99,10 +98,10 @@ def ppo_agent(mdp: TabularMDP, config: Config):
         def step(states, key):
             actions = jax.random.categorical(key, log_pi[states])
             log_probs, values = log_pi[states, actions], value[states]
-            soft_reward = reward[states, actions] - config.temperature * log_probs
+            soft_reward = reward[states, actions] - temperature * log_probs
             return mdp.next_state[states, actions], (states, actions, log_probs, values, soft_reward)
 
-        start = jnp.full((config.ppo_num_envs,), mdp.start)
+        start = jnp.full((ppo.num_envs,), mdp.start)
         last, (states, actions, log_probs, values, rewards) = jax.lax.scan(
             step, start, jax.random.split(key, mdp.horizon)
         )
@@ -112,7 +111,7 @@ def ppo_agent(mdp: TabularMDP, config: Config):
             advantage, next_value = carry
             value, r = xs
             delta = r + config.gamma * next_value - value
-            advantage = delta + config.gamma * config.ppo_gae_lambda * advantage
+            advantage = delta + config.gamma * ppo.gae_lambda * advantage
             return (advantage, value), advantage
 
         _, advantages = jax.lax.scan(gae, (jnp.zeros_like(last_value), last_value), (values, rewards), reverse=True)
@@ -124,7 +123,7 @@ def ppo_agent(mdp: TabularMDP, config: Config):
         log_probs, values = log_pi[batch.states, batch.actions], value[batch.states]
         ratio = jnp.exp(log_probs - batch.log_probs)
         adv = (batch.advantages - batch.advantages.mean()) / (batch.advantages.std() + 1e-8)
-        clipped = jnp.clip(ratio, 1 - config.ppo_clip, 1 + config.ppo_clip)
+        clipped = jnp.clip(ratio, 1 - ppo.clip, 1 + ppo.clip)
         policy_loss = -jnp.minimum(ratio * adv, clipped * adv).mean()
         value_loss = 0.5 * (((values - batch.returns) / scale) ** 2).mean()
         return policy_loss + 0.5 * value_loss
@@ -134,7 +133,7 @@ def ppo_agent(mdp: TabularMDP, config: Config):
         batch = rollout(agent.params, reward, rollout_key)
 
         def epoch(agent, key):
-            order = jax.random.permutation(key, batch_size).reshape(config.ppo_minibatches, minibatch)
+            order = jax.random.permutation(key, batch_size).reshape(ppo.minibatches, minibatch)
 
             def minibatch_step(agent, idx):
                 grads = jax.grad(loss)(agent.params, jax.tree_util.tree_map(lambda x: x[idx], batch))
@@ -143,11 +142,11 @@ def ppo_agent(mdp: TabularMDP, config: Config):
 
             return jax.lax.scan(minibatch_step, agent, order)[0], None
 
-        return jax.lax.scan(epoch, agent, jax.random.split(shuffle_key, config.ppo_epochs))[0], None
+        return jax.lax.scan(epoch, agent, jax.random.split(shuffle_key, ppo.epochs))[0], None
 
     def improve(agent, reward, key):
-        return jax.lax.scan(lambda a, k: update(a, k, reward), agent, jax.random.split(key, config.ppo_iterations))[0]
+        return jax.lax.scan(lambda a, k: update(a, k, reward), agent, jax.random.split(key, ppo.iterations))[0]
 
-    if batch_size % config.ppo_minibatches:
+    if batch_size % ppo.minibatches:
         raise ValueError(f"ppo_num_envs * horizon = {batch_size} must be divisible by ppo_minibatches")
     return InnerRL(init=init, improve=improve, policy=policy)

@@ -11,10 +11,24 @@ so ``E_occupancy[r]`` is the expected discounted return of ``r`` over one episod
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import NamedTuple
+
 import jax
 import jax.numpy as jnp
 import numpy as np
 from flax import struct
+
+
+class InnerRL(NamedTuple):
+    """An RL solver for one expert on a tabular scalar reward, all functions pure (vmapped by the caller).
+
+    init(key) -> agent; improve(agent, reward[S + 1, A], key) -> agent; policy(agent) -> probs[S + 1, A].
+    """
+
+    init: Callable
+    improve: Callable
+    policy: Callable
 
 
 @struct.dataclass

@@ -8,7 +8,6 @@ Demonstrations use the deterministic (mean) action, so reset noise is what tells
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import os
 
@@ -17,10 +16,9 @@ import jax.numpy as jnp
 import numpy as np
 from flax import serialization, traverse_util
 
-from moiq_jax import envs
-from moiq_jax.algos import moiq
 from moiq_jax.config import Config, tuned
 from moiq_jax.experts.demonstrations import Demonstrations
+from moiq_jax.networks import networks_of_sizes
 
 # SAC as in the paper's experts (sec. 5.1, 0.5M steps; its Table 5 sizes) with Stable-Baselines3's SAC
 # settings where the paper gives none: equal actor and critic learning rates, a learnt temperature from
@@ -51,7 +49,7 @@ def save_experts(path: str | os.PathLike, config: Config, actor_params) -> None:
     as one .npz (the critics are left out: a policy is all that demonstrations need)."""
     flat = traverse_util.flatten_dict(serialization.to_state_dict(jax.device_get(actor_params)), sep="/")
     with open(path, "wb") as f:
-        np.savez_compressed(f, config=np.array(json.dumps(dataclasses.asdict(config))),
+        np.savez_compressed(f, config=np.array(json.dumps(config.to_dict())),
                             **{f"actor/{k}": np.asarray(v) for k, v in flat.items()})
 
 
@@ -70,8 +68,9 @@ def load_experts(path: str | os.PathLike):
 def record_demonstrations(config: Config, actor_params, num_demos: int = 10, seed: int = 0) -> Demonstrations:
     """``num_demos`` full-length episodes of each expert (``actor_params`` with a leading model axis, one
     model per ``config.preferences``) in the absorbing-state env, all episodes at once."""
-    env = envs.make(config.env, absorbing=True)
-    nets = moiq.networks_of_sizes(config.hidden_sizes, env.reward_dim, env.action_size, config.action_scale)
+    env = config.make_env(absorbing=True)
+    c = config.offpolicy
+    nets = networks_of_sizes(c.hidden_sizes, env.reward_dim, env.action_size, c.action_scale)
     preferences = jnp.asarray(config.preferences, jnp.float32)
     horizon = env.episode_length
 
@@ -92,6 +91,6 @@ def record_demonstrations(config: Config, actor_params, num_demos: int = 10, see
         rewards=rewards.astype(np.float32), dones=dones.astype(bool),
         lengths=np.full(obs.shape[:2], horizon, np.int32), preferences=np.asarray(preferences),
         env=config.env,
-        metadata={"expert": "SAC (moiq_jax.experts.sac)", "absorbing": True, "expert_steps": config.total_steps,
+        metadata={"expert": "SAC (moiq_jax.experts.sac)", "absorbing": True, "expert_steps": c.total_steps,
                   "seed": config.seed},
     ).validate(env)

@@ -1,0 +1,268 @@
+"""The off-policy loop, once, for every algorithm (PureJaxRL style): ``make_trainer(config, algorithm)``
+builds pure ``init(key)``, ``run_chunk(state, hyper)`` and ``train(key, hyper)``. A chunk is
+``eval_interval`` env steps per expert in ``lax.scan`` (vectorised rollouts of all experts into their
+replay buffers, then ``updates_per_step`` updates once ``learning_starts`` is passed) and an evaluation.
+
+An ``Algorithm`` says what differs: whether it learns from demonstrations (in the absorbing-state env)
+or from the env's reward, whether it trains one model for all experts or one per expert (vmapped), its
+critic loss, how it samples a batch, an optional extra learner trained beside it (GAIL's discriminator)
+and its reward metrics. ``hyper`` is the pytree of the values a sweep may vary (e.g. ``{"beta": 0.5}``);
+it reaches the algorithm's critic loss and nothing else.
+
+Inside, experts are held in the canonical ``preference_order``; everything a chunk reports is put back
+in the config's order, so every value keeps the label it was given.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any, NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optax
+from flax import struct
+
+from moiq_jax import replay
+from moiq_jax.algos import actor_critic
+from moiq_jax.config import Config
+from moiq_jax.envs.wrappers import AutoReset, VmapWrapper
+from moiq_jax.evaluate import preference_returns
+from moiq_jax.experts.demonstrations import Demonstrations
+from moiq_jax.experts.loading import load_demonstrations, preference_order
+from moiq_jax.networks import networks_of_sizes
+from moiq_jax.preferences import check_preferences
+
+TRANSITION_FIELDS = ("obs", "action", "next_obs", "done")  # what the inverse-RL losses see of a transition
+
+
+class Extra(NamedTuple):
+    """A learner trained beside the actor-critic (GAIL's discriminator), for all ``E`` experts at once:
+    ``init(config, env)(key, E) -> state``; ``update(config, env)(state, batches) -> (state, batches
+    the critic learns from, metrics)``."""
+
+    init: Callable
+    update: Callable
+
+
+class Algorithm(NamedTuple):
+    """What one off-policy algorithm adds to the loop.
+
+    sections: the Config sections it reads (validated). learns_from_demos: True, from demonstrations in
+    the absorbing-state env; False, from the env's reward (experts). one_model_per_expert: train a model
+    per expert (vmapped) instead of one preference-conditioned model for all. hyper(config): its swept
+    values, e.g. ``{"beta": config.moiq.beta}``. critic_loss(config): ``loss(critic_params, nets, params,
+    batches, preferences, hyper, key) -> (loss, metrics)``. sample: ``policy_batch`` or
+    ``expert_and_policy_batch``. reward_metrics(config, nets): ``fn(params, extra, data, preferences, key)
+    -> metrics`` at each evaluation, or None."""
+
+    sections: tuple[str, ...]
+    learns_from_demos: bool
+    one_model_per_expert: bool
+    hyper: Callable[[Config], dict]
+    critic_loss: Callable
+    sample: Callable
+    extra: Extra | None = None
+    reward_metrics: Callable | None = None
+
+
+def policy_batch(buffers, expert_data, key, batch_size):
+    """Per expert: a batch of its replay buffer (with the env's reward)."""
+    policy_key, _ = jax.random.split(key)
+    return jax.vmap(replay.sample, in_axes=(0, 0, None))(
+        buffers, jax.random.split(policy_key, buffers.size.shape[0]), batch_size)
+
+
+def expert_and_policy_batch(buffers, expert_data, key, batch_size):
+    """Per expert: ``batch_size`` rows of its demonstrations, then as many of its replay buffer, marked by
+    ``is_expert``."""
+    num_experts = buffers.size.shape[0]
+    policy_key, expert_key = jax.random.split(key)
+    policy = jax.vmap(replay.sample, in_axes=(0, 0, None))(buffers, jax.random.split(policy_key, num_experts), batch_size)
+    policy = {k: policy[k] for k in TRANSITION_FIELDS}
+    rows = jax.random.randint(expert_key, (num_experts, batch_size), 0, expert_data["obs"].shape[1])
+    expert = jax.tree_util.tree_map(
+        lambda x: jnp.take_along_axis(x, rows.reshape(*rows.shape, *([1] * (x.ndim - 2))), axis=1),
+        {k: expert_data[k] for k in TRANSITION_FIELDS})
+    batches = jax.tree_util.tree_map(lambda e, p: jnp.concatenate([e, p], axis=1), expert, policy)
+    is_expert = jnp.arange(2 * batch_size) < batch_size
+    return {**batches, "is_expert": jnp.broadcast_to(is_expert, (num_experts, 2 * batch_size))}
+
+
+@struct.dataclass
+class RunnerState:
+    """Everything one training run carries between steps (for ``E`` experts of one model)."""
+
+    learner: actor_critic.Learner
+    buffers: replay.ReplayBuffer  # leading expert axis
+    env_state: Any  # [E, num_envs, ...]
+    key: jax.Array
+    env_steps: jax.Array
+    best_params: Any
+    best_return: jax.Array  # mean scalarised evaluation return of best_params
+    extra: Any = None  # the algorithm's Extra state, leading expert axis
+
+
+class Trainer(NamedTuple):
+    """Pure pieces of one configured training: ``init(key)``, ``run_chunk(state, hyper)`` (eval_interval
+    env steps then an evaluation; metrics in the config's expert order), ``train(key, hyper)`` (all
+    chunks); ``num_chunks``; ``hyper``: the config's swept values; ``preferences``: the labels, in the
+    config's order; ``to_config_order(params, axis)``: parameters with per-expert entries (leading
+    expert axis at ``axis``) put in the config's order."""
+
+    init: Any
+    run_chunk: Any
+    train: Any
+    num_chunks: int
+    hyper: dict
+    preferences: np.ndarray
+    to_config_order: Any
+
+
+def expert_transitions(demos: Demonstrations) -> dict:
+    """Real (unpadded) demo steps as ``[E, M, ...]`` arrays; every expert must have the same count M."""
+    mask = demos.mask()
+    counts = mask.reshape(mask.shape[0], -1).sum(1)
+    if np.any(counts != counts[0]):
+        raise ValueError(f"the learner needs equally many demo steps per expert (use the absorbing-state env), "
+                         f"got {counts}")
+    take = lambda x: np.stack([np.asarray(x)[e][mask[e]] for e in range(mask.shape[0])])
+    return {
+        "obs": take(demos.obs), "action": take(demos.actions), "next_obs": take(demos.next_obs),
+        "done": take(demos.dones).astype(np.float32), "true_reward": take(demos.rewards),
+    }
+
+
+def make_trainer(config: Config, algorithm: Algorithm, demos: Demonstrations | None = None) -> Trainer:
+    """Build the pure training functions of ``algorithm`` for ``config`` (demonstrations in the config's
+    preference order, loaded from the config when not given)."""
+    c = config.offpolicy
+    env = config.make_env(absorbing=algorithm.learns_from_demos)
+    labels = check_preferences(config.preferences, env.reward_dim)
+    order = preference_order(labels)  # canonical expert order inside the loop
+    back = np.argsort(order)  # from the canonical order to the config's
+    data = None
+    if algorithm.learns_from_demos:
+        demos = load_demonstrations(config, env) if demos is None else demos
+        data = {k: jnp.asarray(v[order]) for k, v in expert_transitions(demos).items()}
+    preferences = jnp.asarray(labels[order])
+    num_experts = preferences.shape[0]
+    rollout_env = VmapWrapper(AutoReset(env), c.num_envs)
+    nets = networks_of_sizes(c.hidden_sizes, env.reward_dim, env.action_size, c.action_scale)
+    optimisers = actor_critic.Optimisers(optax.adam(c.critic_lr), optax.adam(c.actor_lr), optax.adam(c.alpha_lr))
+    settings = actor_critic.Settings(-float(env.action_size), c.tau, c.learn_alpha)
+    critic_loss = algorithm.critic_loss(config)
+    extra_init = algorithm.extra and algorithm.extra.init(config, env)
+    extra_update = algorithm.extra and algorithm.extra.update(config, env)
+    reward_metrics = algorithm.reward_metrics and algorithm.reward_metrics(config, nets)
+    iterations_per_chunk = c.eval_interval // c.num_envs
+
+    def init(key, prefs):
+        learner_key, env_key, key = jax.random.split(key, 3)
+        learner = actor_critic.init_learner(nets, optimisers, learner_key, env.observation_size, env.action_size,
+                                            prefs, c.init_alpha)
+        example = {"obs": jnp.zeros(env.observation_size), "action": jnp.zeros(env.action_size),
+                   "next_obs": jnp.zeros(env.observation_size), "done": jnp.zeros(()),
+                   "reward": jnp.zeros(env.reward_dim)}
+        buffers = jax.vmap(lambda _: replay.init(example, c.buffer_size))(jnp.arange(prefs.shape[0]))
+        env_state = jax.vmap(rollout_env.reset)(jax.random.split(env_key, prefs.shape[0]))
+        extra = None
+        if extra_init:
+            key, extra_key = jax.random.split(key)
+            extra = extra_init(extra_key, prefs.shape[0])
+        return RunnerState(learner, buffers, env_state, key, jnp.zeros((), jnp.int32),
+                           learner.params, jnp.full((), -jnp.inf), extra)
+
+    def env_iteration(state: RunnerState, hyper, expert_data, prefs):
+        key, act_key, random_key, update_key = jax.random.split(state.key, 4)
+        obs = state.env_state.obs  # [E, num_envs, obs]
+        learned, _ = jax.vmap(nets.sample, in_axes=(None, 0, 0, 0))(
+            state.learner.params.actor, obs, prefs, jax.random.split(act_key, prefs.shape[0]))
+        random = jax.random.uniform(random_key, learned.shape, minval=-1.0, maxval=1.0)
+        action = jnp.where(state.env_steps < c.learning_starts, random, learned)
+        nxt = jax.vmap(rollout_env.step)(state.env_state, action)
+        transitions = {"obs": obs, "action": action, "next_obs": nxt.info["final_obs"],
+                       "done": nxt.done.astype(jnp.float32), "reward": nxt.reward}
+        buffers = jax.vmap(replay.add)(state.buffers, transitions)
+        objective = lambda critic_params, params, batches, p, k: critic_loss(critic_params, nets, params, batches,
+                                                                             p, hyper, k)
+
+        def learn(models):
+            def one_update(models, k):
+                learner, extra = models
+                batch_key, step_key = jax.random.split(k)
+                batches = algorithm.sample(buffers, expert_data, batch_key, c.batch_size)
+                extra_metrics = {}
+                if extra_update:
+                    extra, batches, extra_metrics = extra_update(extra, batches)
+                learner, metrics = actor_critic.update(learner, nets, optimisers, batches, prefs, step_key, settings,
+                                                       objective)
+                return (learner, extra), {**metrics, **extra_metrics}
+
+            models, metrics = jax.lax.scan(one_update, models, jax.random.split(update_key, c.updates_per_step))
+            return models, jax.tree_util.tree_map(lambda m: m[-1], metrics)
+
+        ready = state.env_steps + c.num_envs > c.learning_starts
+        (learner, extra), metrics = jax.lax.cond(
+            ready, learn, lambda models: (models, jax.tree_util.tree_map(
+                lambda s: jnp.zeros(s.shape, s.dtype), jax.eval_shape(learn, models)[1])),
+            (state.learner, state.extra))
+        metrics = {**metrics, "updated": ready}
+        return state.replace(learner=learner, extra=extra, buffers=buffers, env_state=nxt, key=key,
+                             env_steps=state.env_steps + c.num_envs), metrics
+
+    def run_chunk(state: RunnerState, hyper, expert_data, prefs):
+        state, metrics = jax.lax.scan(lambda s, _: env_iteration(s, hyper, expert_data, prefs), state, None,
+                                      length=iterations_per_chunk)
+        updated = jnp.maximum(jnp.sum(metrics.pop("updated")), 1)
+        metrics = jax.tree_util.tree_map(lambda m: jnp.sum(m, axis=0) / updated, metrics)  # mean over updates
+        key, eval_key = jax.random.split(state.key)
+        keys = jax.random.split(eval_key)
+        params = state.learner.params
+        returns = preference_returns(nets, params.actor, env, prefs, keys[1], c.eval_episodes).mean(axis=1)
+        scalar = jnp.sum(returns * prefs, axis=-1)
+        score = jnp.mean(scalar)
+        better = score > state.best_return
+        best = jax.tree_util.tree_map(lambda new, old: jnp.where(better, new, old), params, state.best_params)
+        state = state.replace(key=key, best_params=best, best_return=jnp.maximum(score, state.best_return))
+        metrics = {**metrics, "eval_return": returns, "eval_scalar_return": scalar, "env_steps": state.env_steps}
+        if reward_metrics:
+            metrics.update(reward_metrics(params, state.extra, expert_data, prefs, keys[0]))
+        return state, metrics
+
+    def in_config_order(metrics):
+        """Per-expert metrics (leading axis E) from the canonical order to the config's."""
+        return {k: v[back] if v.ndim >= 1 and v.shape[0] == num_experts else v for k, v in metrics.items()}
+
+    if algorithm.one_model_per_expert:  # n single-expert models, vmapped
+        per_model = None if data is None else jax.tree_util.tree_map(lambda x: x[:, None], data)
+        model_prefs = preferences[:, None]
+
+        def init_all(key):
+            return jax.vmap(init)(jax.random.split(key, num_experts), model_prefs)
+
+        def chunk_all(state, hyper):
+            state, metrics = jax.vmap(run_chunk, in_axes=(0, None, 0, 0))(state, hyper, per_model, model_prefs)
+            merged = {k: (v[:, 0] if v.ndim >= 2 and v.shape[1] == 1 else v) for k, v in metrics.items()}
+            return state, in_config_order(merged)
+
+        def to_config_order(params, axis=0):
+            return jax.tree_util.tree_map(lambda x: jnp.take(x, back, axis=axis), params)
+    else:
+        def init_all(key):
+            return init(key, preferences)
+
+        def chunk_all(state, hyper):
+            state, metrics = run_chunk(state, hyper, data, preferences)
+            return state, in_config_order(metrics)
+
+        def to_config_order(params, axis=0):
+            return params.replace(log_alpha=jnp.take(params.log_alpha, back, axis=axis))
+
+    def train(key, hyper):
+        state = init_all(key)
+        return jax.lax.scan(lambda s, _: chunk_all(s, hyper), state, None, length=c.total_steps // c.eval_interval)
+
+    hyper = {name: float(value) for name, value in algorithm.hyper(config).items()}
+    return Trainer(init_all, chunk_all, train, c.total_steps // c.eval_interval, hyper, labels, to_config_order)
