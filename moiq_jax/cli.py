@@ -294,7 +294,7 @@ def _cmd_demos(args) -> int:
 
 
 def _cmd_plot(args) -> int:
-    from moiq_jax import envs, plots
+    from moiq_jax import plots
 
     out_dir = args.out or args.run_dirs[0]
     os.makedirs(out_dir, exist_ok=True)
@@ -309,7 +309,7 @@ def _cmd_plot(args) -> int:
     rounds = plots.read_metrics(args.run_dirs[0]).step_name == "round"  # ADMM logs rounds, not env steps
     metric = args.metric or ("return" if rounds else "eval_scalar_return")
     print(plots.learning_curves(args.run_dirs, os.path.join(out_dir, "learning_curves.png"), metric, expert))
-    base = envs.make(config.env).unwrapped
+    base = config.make_env().unwrapped
     for run_dir in args.run_dirs:
         found = plots.read_transfer(run_dir)
         if found is not None:
@@ -323,7 +323,6 @@ def _cmd_eval(args) -> int:
     import jax
 
     import moiq_jax
-    from moiq_jax import envs
     from moiq_jax.algos.offpolicy import Algorithm, make_trainer
     from moiq_jax.checkpoint import Checkpoints
     from moiq_jax.preferences import preference_sweep
@@ -341,8 +340,9 @@ def _cmd_eval(args) -> int:
         checkpoints.close()
     experts = np.asarray(config.preferences, np.float32)
     preferences = np.concatenate([experts, preference_sweep()]) if experts.shape[1] == 2 else experts
-    returns = moiq_jax.evaluate(params, config.env, preferences, episodes=args.episodes)
-    base = envs.make(config.env).unwrapped
+    env = config.make_env(absorbing=True)  # as in training, on the run's backend
+    returns = moiq_jax.evaluate(params, env, preferences, episodes=args.episodes)
+    base = env.unwrapped
     front = base.pareto_front() if hasattr(base, "pareto_front") else None
     optimal = [None if front is None else bool(np.dot(w, r) >= np.max(front @ w) - 1e-3)
                for w, r in zip(preferences, returns)]

@@ -94,7 +94,7 @@ def preference_returns(nets, actor_params, env: Env, preferences, key, num_episo
 
 def evaluate(params, env: Env | str, preferences, episodes: int = 1, seed: int = 0) -> np.ndarray:
     """Mean undiscounted vector returns ``[P, d]`` over ``episodes`` episodes of the deterministic policy
-    of trained MOIQ parameters (``TrainResult.best_params`` or ``final_params``) for each preference.
+    of trained MOIQ parameters (``Result.best_params`` or ``final_params``) for each preference.
 
     ``env`` is an env or a registered name; a name is made with the absorbing state, as in training
     (a policy trained with it observes the absorbing flag). Preferences may be any, not just the experts'.

@@ -19,8 +19,8 @@ class Result:
     None); best_return; seconds of wall-clock time.
 
     A sweep's result has a leading run axis on history, params and best_return, and ``runs``: each swept
-    name (``seed``, ``beta``...) -> its value per run. ``extras``: what only one algorithm has (ADMM: the
-    optimal returns and the transfer to the 19 sweep preferences)."""
+    name (``seed``, ``beta``...) -> its value per run. ``extras``: what only one algorithm has, as it gives them
+    (ADMM: ``optimal_return [E]`` and ``transfer``, the 19 sweep preferences' results with a seed axis)."""
 
     config: Config
     preferences: np.ndarray

@@ -53,18 +53,26 @@ def train(config: Config, demos: Demonstrations | None = None, log=print, run_di
     """Run ``config``'s algorithm. The off-policy ones run jitted chunks of ``eval_interval`` env steps,
     logged in between; with ``run_dir``, also checkpointed after every chunk and resumable (see
     ``moiq_jax.runner``); with ``until``, stopped after the first evaluation whose metrics (a dict of
-    arrays) it holds true for; ``on_chunk(state, history)`` is called after every evaluation. ``demos``
+    arrays) it holds true for; ``on_chunk(state, history)`` is called after every evaluation (the state's
+parameters in the config's expert order). ``demos``
     (in the config's preference order) replaces the configured ones."""
     algorithm = algorithm_of(config)
     validate(config)
     if not isinstance(algorithm, Algorithm):
         return algorithm.train_seeds(config, [config.seed]).run(0)
     trainer = make_trainer(config, algorithm, demos)
+
+    def in_config_order(state):
+        return state.replace(best_params=trainer.to_config_order(state.best_params),
+                             learner=state.learner.replace(params=trainer.to_config_order(state.learner.params)))
+
+    hook = None if on_chunk is None else (lambda state, history: on_chunk(in_config_order(state), history))
     state, history, seconds = run_chunks(trainer, config, run_dir=run_dir, resume=resume, log=log, progress=progress,
-                                         until=until, on_chunk=on_chunk)
+                                         until=until, on_chunk=hook)
     stacked = {k: np.stack([h[k] for h in history]) for k in history[0]}
-    return Result(config, trainer.preferences, stacked, trainer.to_config_order(state.learner.params),
-                  trainer.to_config_order(state.best_params), np.asarray(state.best_return), seconds)
+    state = in_config_order(state)
+    return Result(config, trainer.preferences, stacked, state.learner.params, state.best_params,
+                  np.asarray(state.best_return), seconds)
 
 
 def run_grid(values: dict) -> dict[str, np.ndarray]:

@@ -49,6 +49,11 @@ def test_metrics_csv_rows_are_the_same_under_the_same_labels(runs):
         by_label[name] = {(r["env_steps"], r["preference"]): {k: v for k, v in r.items() if k != "expert"} for r in rows}
         np.testing.assert_allclose(result.preferences, config.preferences)
     assert by_label["ascending"] == by_label["descending"] == by_label["shuffled"]
+    # the parameters' per-expert entries (learnt temperatures) follow the labels too
+    alphas = {name: dict(zip(map(label, config.preferences), np.asarray(result.final_params.log_alpha).tolist()))
+              for name, (config, result, _) in runs.items()}
+    assert alphas["ascending"] == alphas["descending"] == alphas["shuffled"]
+    assert len(set(alphas["ascending"].values())) == 3  # they differ per expert, so the check can see a swap
     # each row's scalarised return is its own vector return scalarised by its own label
     for config, _, rows in runs.values():
         for r in rows:
