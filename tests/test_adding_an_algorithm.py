@@ -17,7 +17,7 @@ TINY = moiq_jax.Config(algo="sqil", total_steps=40, eval_interval=20, num_envs=2
 
 def readme_module():
     section = README.read_text().split("## Adding an algorithm")[1].split("\n## ")[0]
-    (code,) = re.findall(r"```python\n(.*?)```", section, re.S)
+    (code,) = re.findall(r"```python\n(.*?)```", section, re.DOTALL)
     module = types.ModuleType("sqil")
     exec(compile(code, "README.md", "exec"), module.__dict__)  # noqa: S102 (the README's own example)
     return module

@@ -204,6 +204,11 @@ class _Demos(NamedTuple):
     lengths: jax.Array
 
 
+def train(config: Config) -> Result:
+    """``train_seeds(config, [config.seed])``: arrays keep a seed axis of length 1 (``moiq_jax.train`` drops it)."""
+    return train_seeds(config, [config.seed])
+
+
 class Tabular(NamedTuple):
     """A tabular algorithm of the registry: the Config sections it reads and ``train_seeds``."""
 

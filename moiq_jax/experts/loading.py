@@ -53,8 +53,9 @@ def load_demonstrations(config: Config, env=None) -> Demonstrations:
     demos = Demonstrations.load(config.demos, env)
     if getattr(demos, "preferences", None) is None:
         raise ValueError(f"the demos in {config.demos!r} carry no preferences; this learner needs labelled demos")
+    index = match_preferences(demos.preferences, config.preferences, repr(config.demos))
     if demos.num_episodes < config.num_demos:
         raise ValueError(f"the demos in {config.demos!r} hold {demos.num_episodes} episodes per expert, fewer "
                          f"than num_demos = {config.num_demos}")
     demos = demos.replace(**{name: np.asarray(getattr(demos, name))[:, : config.num_demos] for name in EPISODE_FIELDS})
-    return take_experts(demos, match_preferences(demos.preferences, config.preferences, repr(config.demos)))
+    return take_experts(demos, index)
