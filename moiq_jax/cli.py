@@ -205,9 +205,14 @@ def _run_sweep(config: Config, values: dict, out_dir: str) -> None:
 
 
 def _cmd_sweep(args) -> int:
-    from moiq_jax.train import swept_names, validate
+    from moiq_jax.algos.offpolicy import Algorithm
+    from moiq_jax.train import algorithm_of, swept_names, validate
 
     config = validate(config_from_args(args))
+    off_policy = isinstance(algorithm_of(config), Algorithm)
+    if not off_policy:
+        raise ValueError(f"moiq sweep runs the off-policy algorithms; for {config.algo}, moiq_jax.sweep(config, "
+                         "seed=[...]) trains every seed as one program")
     out_dir = args.out or os.path.join("runs", f"sweep-{config.env}-{config.algo}-{time.strftime('%Y%m%d-%H%M%S')}")
     if os.path.exists(out_dir) and os.listdir(out_dir):
         raise ValueError(f"sweep directory {out_dir!r} already exists; choose another --out")
