@@ -135,7 +135,8 @@ def preference_step(common, counts, exits, candidates, current, mdp, config, q_i
     scalar reward's scale: a larger ``r . w`` makes every policy more peaked). ``rule="likelihood"``: the
     best candidate. ``rule="closest"``: the candidate nearest (L1) to the expert's ``current`` preference
     among those whose greedy behaviour equals the best one's, so the preference moves no further than the
-    behaviour needs (within a behaviour the data cannot tell preferences apart, see the module docstring)."""
+    behaviour needs (within a behaviour the data cannot tell preferences apart, see the module docstring);
+    while no candidate repeats any of the expert's episodes it keeps ``current`` (log-likelihood NaN)."""
     if rule not in ("closest", "likelihood"):
         raise ValueError(f"unknown preference rule {rule!r}; choose 'closest' or 'likelihood'")
     q, log_policies = candidate_policies(common, candidates, mdp, config, q_init)
@@ -144,20 +145,25 @@ def preference_step(common, counts, exits, candidates, current, mdp, config, q_i
     share = jnp.all(exits[:, :, None, :] == behaviour[None, None], axis=-1).mean(1)  # [E, K]
     top = share >= share.max(1, keepdims=True)
     best = jnp.argmax(jnp.where(top, loglik, -jnp.inf), axis=1)
-    if rule == "closest":
-        same = jnp.all(behaviour[None, :, :] == behaviour[best][:, None, :], axis=-1)  # [E, K]
-        distance = jnp.abs(candidates[None, :, :] - current[:, None, :]).sum(-1)
-        best = jnp.argmin(jnp.where(same, distance, jnp.inf), axis=1)
-    return candidates[best], jnp.take_along_axis(loglik, best[:, None], 1)[:, 0], q
+    if rule == "likelihood":
+        return candidates[best], jnp.take_along_axis(loglik, best[:, None], 1)[:, 0], q
+    same = jnp.all(behaviour[None, :, :] == behaviour[best][:, None, :], axis=-1)  # [E, K]
+    distance = jnp.abs(candidates[None, :, :] - current[:, None, :]).sum(-1)
+    best = jnp.argmin(jnp.where(same, distance, jnp.inf), axis=1)
+    # no candidate repeats any demonstrated episode yet: the reward cannot tell, so the preference stays
+    keep = share.max(1) == 0
+    return (jnp.where(keep[:, None], current, candidates[best]),
+            jnp.where(keep, jnp.nan, jnp.take_along_axis(loglik, best[:, None], 1)[:, 0]), q)
 
 
 def make_infer(config: Config, mdp: tabular.TabularMDP, candidates: jax.Array, infer: bool = True,
-               rule: str = "closest"):
+               rule: str = "closest", warmup: int = 0):
     """A pure ``run(key, expert_occupancy [E, S+1, A], counts [E, S+1, A], exits [E, N, 2], initial [E, d])`` that ``jax.vmap``
     batches over seeds, returning ``(common reward, final preferences, per-round metrics)``.
 
     Each round is ``admm.make_train``'s (ADMM iterations, then inner RL) with the preference step between
-    the two; with ``infer=False`` the preferences stay at ``initial`` and the round is exactly Figure 1's."""
+    the two, from round ``warmup + 1`` on (before it, the reward forms under the initial preferences); with
+    ``infer=False`` the preferences stay at ``initial`` and the round is exactly Figure 1's."""
     agent = admm.inner_rl(mdp, config)
 
     def run(key, expert_occupancy, counts, exits, initial):
@@ -168,16 +174,18 @@ def make_infer(config: Config, mdp: tabular.TabularMDP, candidates: jax.Array, i
         consensus = admm.ConsensusState(jnp.zeros(shape), jnp.zeros(shape))
         q_candidates = jnp.zeros((candidates.shape[0], mdp.num_states, mdp.num_actions))
 
-        def round_(carry, key):
+        def round_(carry, inputs):
             consensus, agents, preferences, q_candidates = carry
+            key, index = inputs
             policies = jax.vmap(agent.policy)(agents)
             policy_occupancy = jax.vmap(lambda p: tabular.occupancy(p, mdp, config.gamma))(policies)
             gains = admm.reward_gains(preferences, expert_occupancy, policy_occupancy)
             metric = 1.0 + (expert_occupancy + policy_occupancy).mean(0)[..., None] if config.visit_metric else 1.0
             consensus = admm.consensus_admm(consensus, gains, metric, config)
             if infer:
-                preferences, best, q_candidates = preference_step(
+                stepped, best, q_candidates = preference_step(
                     consensus.common, counts, exits, candidates, preferences, mdp, config, q_candidates, rule)
+                preferences = jnp.where(index >= warmup, stepped, preferences)
             else:
                 best = jnp.zeros(E)
             scalar = jnp.einsum("sad,ed->esa", consensus.common, preferences)
@@ -188,7 +196,8 @@ def make_infer(config: Config, mdp: tabular.TabularMDP, candidates: jax.Array, i
             return (consensus, agents, preferences, q_candidates), metrics
 
         carry = (consensus, agents, initial, q_candidates)
-        (consensus, _, preferences, _), metrics = jax.lax.scan(round_, carry, jax.random.split(key, config.rounds))
+        (consensus, _, preferences, _), metrics = jax.lax.scan(round_, carry, (jax.random.split(key, config.rounds),
+                                                                              jnp.arange(config.rounds)))
         return consensus.common, preferences, metrics
 
     return run
@@ -250,7 +259,7 @@ class InferenceResult(NamedTuple):
 
 
 def infer_seeds(config: Config, occupancy, counts, exits, initial, keys, resolution: int = 100,
-                infer: bool = True, rule: str = "closest") -> InferenceResult:
+                infer: bool = True, rule: str = "closest", warmup: int = 0) -> InferenceResult:
     """Run the inference loop for every seed in one vmapped program: ``occupancy`` and ``counts``
     ``[seeds, E, S+1, A]`` (``tabular.demo_occupancy`` with ``config.gamma`` and ``demo_counts``), ``exits``
     ``[seeds, E, N, 2]`` (``demo_exits``), ``initial`` ``[seeds, E, d]``, ``keys`` ``[seeds]``."""
@@ -261,7 +270,7 @@ def infer_seeds(config: Config, occupancy, counts, exits, initial, keys, resolut
         raise ValueError(f"initial preferences have shape {initial.shape}, expected [seeds, experts, d] "
                          f"matching counts {np.shape(counts)}")
     candidates = jnp.asarray(simplex_grid(initial.shape[-1], resolution))
-    run = jax.jit(jax.vmap(make_infer(config, mdp, candidates, infer, rule)))
+    run = jax.jit(jax.vmap(make_infer(config, mdp, candidates, infer, rule, warmup)))
     common, preferences, metrics = run(keys, jnp.asarray(occupancy), jnp.asarray(counts), jnp.asarray(exits), initial)
     behaviour = np.asarray(jax.jit(jax.vmap(lambda r: candidate_behaviour(r, candidates, mdp, config)))(common))
     index = np.argmin(np.abs(np.asarray(preferences)[..., None, :] - np.asarray(candidates)).sum(-1), -1)  # [seeds, E]
@@ -283,8 +292,8 @@ def length_order(counts: np.ndarray) -> np.ndarray:
     return np.argsort(-np.asarray(counts).sum((-1, -2)), kind="stable")
 
 
-def infer_and_learn(config: Config, demos: Demonstrations, key: jax.Array, initial=None,
-                    resolution: int = 100) -> InferenceResult:
+def infer_and_learn(config: Config, demos: Demonstrations, key: jax.Array, initial=None, resolution: int = 100,
+                    warmup: int = 0, rule: str = "closest") -> InferenceResult:
     """Infer every expert's preference from ``demos`` (labels, if any, are ignored) jointly with the common
     reward, ``config.rounds`` rounds on ``config.env`` (a discrete DST map). ``initial`` ``[E, d]``: the
     starting preferences (which fix the gauge, see the module docstring); default: ``spread_preferences``
@@ -302,7 +311,8 @@ def infer_and_learn(config: Config, demos: Demonstrations, key: jax.Array, initi
         raise ValueError(f"initial preferences have shape {initial.shape}, expected "
                          f"[{demos.num_experts}, {env.reward_dim}]: one per expert")
     exits = demo_exits(demos, mdp, cols)
-    return infer_seeds(config, occupancy[None], counts[None], exits[None], initial[None], key[None], resolution)
+    return infer_seeds(config, occupancy[None], counts[None], exits[None], initial[None], key[None], resolution,
+                       rule=rule, warmup=warmup)
 
 
 def optimal_cells(sea_map, preferences) -> list:
