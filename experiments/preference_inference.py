@@ -99,6 +99,10 @@ def run_setting(env_name: str, preferences, seeds, rounds: int, warmup: int, rul
                 "inferred": inferred.preferences[s, e].round(4).tolist(),
                 "interval_learned_reward": inferred.learned_interval[s, e].round(4).tolist(),
                 "interval_true_reward": np.round(pi.true_interval(sea_map, true_cells[e]), 4).tolist(),
+                # the label's interval under the reward that ADMM learns *with* the labels (Figure 1's reward)
+                "interval_labelled_reward": runs["labelled"].learned_interval[s, e].round(4).tolist(),
+                "label_matches_labelled_reward": bool(np.allclose(runs["labelled"].behaviour[s, e],
+                                                                              data["returns"][s, e], atol=1e-4)),
                 "treasure_true": float(sea_map.grid[true_cells[e]]),
                 "treasure_inferred_true_reward": float(sea_map.grid[inferred_cells[e]]),
                 "treasure_inferred_learned_reward": float(inferred.behaviour[s, e, 0]),
