@@ -106,3 +106,19 @@ def test_infer_and_learn_checks_its_inputs(mini):
     _, _, config, demos = mini
     with pytest.raises(ValueError, match=r"expected \[3, 2\]: one per expert"):
         pi.infer_and_learn(config, demos.unlabelled(), jax.random.PRNGKey(0), initial=np.full((2, 2), 0.5))
+
+
+def test_write_run_logs_every_round_and_writes_the_run_directory(tmp_path):
+    import json
+
+    rounds = np.array([[[0.5, 0.5], [0.3, 0.7]], [[0.6, 0.4], [0.2, 0.8]]], np.float32)
+    result = pi.InferenceResult(
+        config=None, initial=rounds[:1], preferences=rounds[-1:], common_reward=None, behaviour=None,
+        metrics={"preferences": rounds[None], "log_likelihood": np.array([[[np.nan, -2.0], [-1.0, -0.5]]])},
+        learned_interval=np.array([[[0.5, 1.0], [0.0, 0.4]]]))
+    lines = []
+    record = pi.write_run(result, tmp_path / "run", log=lines.append)
+    assert lines[0] == "round 1: preferences [[0.5, 0.5], [0.3, 0.7]]" and len(lines) == 3
+    written = json.loads((tmp_path / "run" / "inferred_preferences.json").read_text())
+    assert written == record and written["log_likelihood_per_round"][0] == [None, -2.0]
+    np.testing.assert_allclose(written["inferred"], [[0.6, 0.4], [0.2, 0.8]])

@@ -318,3 +318,29 @@ def infer_and_learn(config: Config, demos: Demonstrations, key: jax.Array, initi
 def optimal_cells(sea_map, preferences) -> list:
     """The true-optimal treasure cell of every preference (``dst_oracle.optimal_treasure``)."""
     return [dst_oracle.optimal_treasure(sea_map, w)[0] for w in np.asarray(preferences)]
+
+
+def write_run(result: InferenceResult, run_dir: str | None = None, log=print, seed_index: int = 0) -> dict:
+    """Log one seed's inferred preferences per round and at the end (with their learned-reward intervals) and,
+    with ``run_dir``, write them to ``run_dir/inferred_preferences.json``; returns what it writes."""
+    import json
+    import os
+
+    per_round = np.asarray(result.metrics["preferences"][seed_index], np.float64)  # [rounds, E, d]
+    for k, prefs in enumerate(per_round):
+        log(f"round {k + 1}: preferences {np.round(prefs, 3).tolist()}")
+    record = {
+        "initial": result.initial[seed_index].tolist(),
+        "inferred": per_round[-1].tolist(),
+        "interval_learned_reward": result.learned_interval[seed_index].tolist(),
+        "per_round": per_round.tolist(),
+        "log_likelihood_per_round": np.where(np.isnan(result.metrics["log_likelihood"][seed_index]), None,
+                                             result.metrics["log_likelihood"][seed_index]).tolist(),
+    }
+    log(f"inferred preferences {np.round(per_round[-1], 3).tolist()} (w[0] intervals with the same "
+        f"behaviour under the learned reward: {np.round(result.learned_interval[seed_index], 3).tolist()})")
+    if run_dir is not None:
+        os.makedirs(run_dir, exist_ok=True)
+        with open(os.path.join(run_dir, "inferred_preferences.json"), "w") as f:
+            json.dump(record, f, indent=1)
+    return record
