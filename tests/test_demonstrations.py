@@ -50,3 +50,29 @@ def test_demos_with_another_number_of_objectives_do_not_fit_the_env():
     three.validate()  # consistent in itself
     with pytest.raises(ValueError, match="reward_dim 3 does not match the env's 2"):
         three.validate(envs.make("cdst", absorbing=True))
+
+
+def test_unlabelled_demos_round_trip_and_validate(tmp_path, demos):
+    unlabelled = demos.unlabelled()
+    assert not unlabelled.labelled and unlabelled.num_experts == 2 and unlabelled.reward_dim == 2
+    path = tmp_path / "unlabelled.npz"
+    unlabelled.save(path)
+    with np.load(path) as data:
+        assert "preferences" not in data.files
+    loaded = Demonstrations.load(path, envs.make("dst-mini", absorbing=True))
+    assert loaded.preferences is None and loaded.num_experts == 2
+    np.testing.assert_array_equal(np.asarray(loaded.actions), np.asarray(demos.actions))
+    # a labelled file still loads with its preferences
+    demos.save(tmp_path / "labelled.npz")
+    np.testing.assert_allclose(Demonstrations.load(tmp_path / "labelled.npz").preferences, [[0.9, 0.1], [0.1, 0.9]])
+
+
+def test_preferences_of_the_wrong_shape_give_clear_errors(demos):
+    with pytest.raises(ValueError, match=r"expected \[2, d\]: one per expert"):
+        demos.replace(preferences=np.array([[0.9, 0.1]], np.float32)).validate()
+    with pytest.raises(ValueError, match=r"expected \[2, d\]"):
+        demos.replace(preferences=np.array([0.9, 0.1], np.float32)).validate()
+    with pytest.raises(ValueError, match="rewards has shape"):  # 3 weights but 2-objective rewards
+        demos.replace(preferences=np.full((2, 3), 1 / 3, np.float32)).validate()
+    with pytest.raises(ValueError, match="lengths has shape"):
+        demos.unlabelled().replace(lengths=np.asarray(demos.lengths)[:1]).validate()
