@@ -26,6 +26,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from moiq_jax import Config, envs
+from moiq_jax.algos import preference_evidence as evidence
 from moiq_jax.algos import preference_inference as pi
 from moiq_jax.algos import tabular
 from moiq_jax.experts import dst_oracle
@@ -61,8 +62,8 @@ def seed_data(env_name: str, preferences, seeds, gamma: float):
         data["returns"].append(demos.episode_returns()[:, 0])  # evaluation only
         demos = demos.unlabelled()
         data["occupancy"].append(tabular.demo_occupancy(demos, mdp, cols, gamma))
-        data["counts"].append(pi.demo_counts(demos, mdp, cols))
-        data["exits"].append(pi.demo_exits(demos, mdp, cols))
+        data["counts"].append(evidence.demo_counts(demos, mdp, cols))
+        data["exits"].append(evidence.demo_exits(demos, mdp, cols))
     return {k: np.stack(v) for k, v in data.items()}
 
 
@@ -79,7 +80,7 @@ def run_setting(env_name: str, preferences, seeds, rounds: int, warmup: int, rul
     sea_map = envs.make(env_name).unwrapped.sea_map
     data = seed_data(env_name, preferences, seeds, config.gamma)
     keys = jax.vmap(jax.random.PRNGKey)(jnp.asarray(list(seeds)))
-    initial = np.stack([pi.spread_preferences(pi.length_order(c)) for c in data["counts"]])
+    initial = np.stack([evidence.spread_preferences(evidence.length_order(c)) for c in data["counts"]])
     inputs = (data["occupancy"], data["counts"], data["exits"])
     start = time.time()
     inferred = pi.infer_seeds(config, *inputs, initial, keys, resolution, infer=True, rule=rule, warmup=warmup)
@@ -89,8 +90,8 @@ def run_setting(env_name: str, preferences, seeds, rounds: int, warmup: int, rul
     true = data["true"]
     per_seed = []
     for s, seed in enumerate(seeds):
-        true_cells = pi.optimal_cells(sea_map, true[s])
-        inferred_cells = pi.optimal_cells(sea_map, inferred.preferences[s])
+        true_cells = evidence.optimal_cells(sea_map, true[s])
+        inferred_cells = evidence.optimal_cells(sea_map, inferred.preferences[s])
         experts = []
         for e in range(len(preferences)):
             experts.append({
@@ -98,7 +99,7 @@ def run_setting(env_name: str, preferences, seeds, rounds: int, warmup: int, rul
                 "initial": initial[s, e].round(4).tolist(),
                 "inferred": inferred.preferences[s, e].round(4).tolist(),
                 "interval_learned_reward": inferred.learned_interval[s, e].round(4).tolist(),
-                "interval_true_reward": np.round(pi.true_interval(sea_map, true_cells[e]), 4).tolist(),
+                "interval_true_reward": np.round(evidence.true_interval(sea_map, true_cells[e]), 4).tolist(),
                 # the label's interval under the reward that ADMM learns *with* the labels (Figure 1's reward)
                 "interval_labelled_reward": runs["labelled"].learned_interval[s, e].round(4).tolist(),
                 "label_matches_labelled_reward": bool(np.allclose(runs["labelled"].behaviour[s, e],

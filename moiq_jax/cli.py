@@ -237,13 +237,16 @@ def _cmd_train(args) -> int:
         from moiq_jax.runlog import RunLog
 
         result = moiq_jax.train(config)
-        rounds = config.admm.rounds
-        log = RunLog(run_dir, config, total_steps=rounds, progress=False, step_name="round")
+        rounds = len(result.history["length"])  # with inferred preferences: warm-up rounds too
+        log = RunLog(run_dir, config, total_steps=rounds, progress=False, step_name="round", labels=result.preferences)
         for r in range(rounds):
             log.log(r + 1, {name: np.asarray(values)[r] for name, values in result.history.items()})
         log.close()
         last = {name: np.asarray(values)[-1] for name, values in result.history.items()}
         print(f"run directory: {run_dir}")
+        if config.admm.infer_preferences:
+            _print_inferred_preferences(result, run_dir)
+            return 0
         print(f"after {rounds} rounds: returns per expert (vector, scalarised) against the optimum")
         for w, v, s, best in zip(result.preferences, last["vector_return"], last["return"],
                                  result.extras["optimal_return"]):
@@ -262,6 +265,18 @@ def _cmd_train(args) -> int:
         sac.save_experts(experts, config, result.best_params.actor)
         print(f"best experts written to {experts}; record demonstrations with `moiq demos --experts {experts}`")
     return 0
+
+
+def _print_inferred_preferences(result, run_dir: str) -> None:
+    """Per round and at the end, the preferences ADMM inferred (written to ``inferred_preferences.json``), and
+    each agent's return against its expert's demonstrations."""
+    from moiq_jax.algos.preference_evidence import write_run
+
+    write_run(result.extras["inference"], run_dir, log=print)
+    last = {name: np.asarray(values)[-1] for name, values in result.history.items()}
+    print("returns per expert (inferred preference: agent's vector return, the expert's demonstrated return)")
+    for w, agent, demo in zip(result.preferences, last["vector_return"], result.extras["demo_return"]):
+        print(f"  {_format_preference(w):<12} {_format_vector(agent)}   expert {_format_vector(demo)}")
 
 
 def _print_demos(demos) -> None:

@@ -111,6 +111,7 @@ class PPOConfig:
 
 
 INNER_RL = ("soft_vi", "ppo")
+PREFERENCE_RULES = ("closest", "likelihood")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -125,10 +126,24 @@ class ADMMConfig:
     reward_bound: float = _field(5.0, "box bound |r_i| <= reward_bound, keeps the x-update finite")
     inner_rl: str = _field("soft_vi", "ADMM's inner RL: soft_vi (exact, fast) or ppo (as in the paper)")
     temperature: float = _field(1.0, "entropy temperature of the max-ent inner RL (soft VI, and PPO's soft reward)")
+    infer_preferences: bool = _field(False, "infer every expert's preference from its demonstrations (their labels "
+                                            "ignored) jointly with the common reward; see algos/preference_inference.py")
+    preference_warmup: int = _field(10, "with infer_preferences: rounds under the initial spread preferences before "
+                                        "the preference step starts (run before the `rounds` rounds)")
+    preference_resolution: int = _field(50, "with infer_preferences: candidate preferences on a simplex grid of this "
+                                            "many steps per unit weight")
+    preference_rule: str = _field("closest", "with infer_preferences: among the candidates that repeat an expert's "
+                                             "behaviour, the closest to its current preference or the most likely "
+                                             "(closest or likelihood)")
     ppo: PPOConfig = dataclasses.field(default_factory=PPOConfig)
 
     def validate(self) -> None:
-        _positive(self, ("rounds", "admm_iterations", "rho", "reward_bound", "temperature"))
+        _positive(self, ("rounds", "admm_iterations", "rho", "reward_bound", "temperature", "preference_resolution"))
+        if self.preference_warmup < 0:
+            raise ValueError(f"preference_warmup must be >= 0, got {self.preference_warmup}")
+        if self.preference_rule not in PREFERENCE_RULES:
+            raise ValueError(f"unknown preference_rule {self.preference_rule!r}; choose one of "
+                             f"{', '.join(PREFERENCE_RULES)}")
         if self.reward_l2 < 0:
             raise ValueError(f"reward_l2 must be >= 0, got {self.reward_l2}")
         if self.inner_rl not in INNER_RL:

@@ -33,12 +33,14 @@ def per_expert_rows(step: int, metrics: dict, preferences, step_name: str = "env
 class RunLog:
     """Writes ``config.json``, appends ``metrics.csv`` and TensorBoard scalars, and shows progress.
 
+    ``labels`` name each expert's rows (default: the config's preferences; a run that infers the
+    preferences labels its experts by the inferred ones). Non-finite values go to the CSV only.
     Reopening a directory (``resume``) appends to the same files; rows past the resumed step are dropped
     first, so the CSV holds each evaluation once.
     """
 
     def __init__(self, run_dir: str | os.PathLike, config, total_steps: int, resume_step: int = 0,
-                 progress: bool = True, step_name: str = "env_steps"):
+                 progress: bool = True, step_name: str = "env_steps", labels=None):
         from tensorboardX import SummaryWriter
         from tqdm import tqdm
 
@@ -50,7 +52,7 @@ class RunLog:
         self.csv_path = os.path.join(self.run_dir, "metrics.csv")
         self._truncate_csv(resume_step)
         self.writer = SummaryWriter(os.path.join(self.run_dir, "tensorboard"))
-        self.preferences = config.preferences
+        self.preferences = config.preferences if labels is None else labels  # each expert's row label
         self.bar = tqdm(total=total_steps, initial=resume_step, unit="step", disable=not progress,
                         dynamic_ncols=True, mininterval=1.0)
         self.start = time.perf_counter()
@@ -80,7 +82,7 @@ class RunLog:
         self._write_rows(rows)
         for row in rows:
             for name, value in row.items():
-                if name not in (self.step_name, "expert", "preference"):
+                if name not in (self.step_name, "expert", "preference") and np.isfinite(value):
                     self.writer.add_scalar(f"preference {row['preference']}/{name}", value, step)
         self.writer.flush()
         self.bar.update(step - self.bar.n)

@@ -13,7 +13,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from moiq_jax.algos import admm, gail, iq_learn, moiq, sac
+from moiq_jax.algos import gail, iq_learn, moiq, preference_inference, sac
 from moiq_jax.algos.offpolicy import Algorithm, make_trainer
 from moiq_jax.config import Config
 from moiq_jax.experts.demonstrations import Demonstrations
@@ -26,7 +26,7 @@ ALGORITHMS = {
     "iq_learn": iq_learn.ALGORITHM,
     "sac": sac.ALGORITHM,
     "gail": gail.ALGORITHM,
-    "admm": admm.ALGORITHM,
+    "admm": preference_inference.ALGORITHM,  # consensus ADMM, inferring the preferences with infer_preferences
 }
 
 

@@ -85,6 +85,15 @@ def consensus_admm(state: ConsensusState, gains: jax.Array, metric: jax.Array, c
     return state
 
 
+def penalty_metric(expert_occupancy: jax.Array, policy_occupancy: jax.Array, config: Config):
+    """The per-entry scale ``[S + 1, A, 1]`` of the ADMM penalty: one plus the mean visit count of expert and
+    policy occupancies when ``visit_metric`` (without it the absorbing state, visited ~90 times, moves ~90x
+    faster than a path step), else 1."""
+    if not config.admm.visit_metric:
+        return 1.0
+    return 1.0 + (expert_occupancy + policy_occupancy).mean(0)[..., None]
+
+
 def evaluate_policies(policies, preferences, mdp: tabular.TabularMDP):
     """Greedy undiscounted true return ``[E, d]``, its scalarisation ``[E]`` and episode length ``[E]``."""
     returns, lengths = jax.vmap(lambda p: tabular.greedy_rollout(p, mdp))(policies)
@@ -110,8 +119,7 @@ def make_train(config: Config, mdp: tabular.TabularMDP, preferences: jax.Array):
             policies = jax.vmap(agent.policy)(agents)
             policy_occupancy = jax.vmap(lambda p: tabular.occupancy(p, mdp, config.gamma))(policies)
             gains = reward_gains(preferences, expert_occupancy, policy_occupancy)
-            # visit-count metric: without it the absorbing state (~90 visits) moves ~90x faster than a path step
-            metric = 1.0 + (expert_occupancy + policy_occupancy).mean(0)[..., None] if config.admm.visit_metric else 1.0
+            metric = penalty_metric(expert_occupancy, policy_occupancy, config)
             consensus = consensus_admm(consensus, gains, metric, config)
             scalar = jnp.einsum("sad,ed->esa", consensus.common, preferences)
             agents = jax.vmap(agent.improve)(agents, scalar, jax.random.split(key, E))

@@ -29,6 +29,7 @@ The joint problem has exact symmetries, so the initial preferences choose the an
 
 from __future__ import annotations
 
+import time
 from typing import NamedTuple
 
 import jax
@@ -37,9 +38,11 @@ import numpy as np
 
 from moiq_jax import envs
 from moiq_jax.algos import admm, tabular
+from moiq_jax.algos import preference_evidence as evidence
 from moiq_jax.config import Config
-from moiq_jax.experts import dst_oracle
 from moiq_jax.experts.demonstrations import Demonstrations
+from moiq_jax.experts.loading import load_unlabelled_demonstrations
+from moiq_jax.result import Result
 
 
 def simplex_grid(reward_dim: int, resolution: int) -> np.ndarray:
@@ -56,46 +59,13 @@ def simplex_grid(reward_dim: int, resolution: int) -> np.ndarray:
     return np.asarray(compositions(resolution, reward_dim), np.float32) / resolution
 
 
-def spread_preferences(order, reward_dim: int = 2) -> np.ndarray:
-    """Initial preferences for ``len(order)`` experts spread over the two-objective simplex: the expert
-    ``order[k]`` gets ``w = [1 - (k + 1)/(n + 1), (k + 1)/(n + 1)]``, so ``order[0]`` weighs objective 0 most."""
-    order = np.asarray(order)
-    n = len(order)
-    if reward_dim != 2:
-        raise ValueError(f"spread_preferences orders experts along a line: it needs 2 objectives, got {reward_dim}")
-    if n < 1 or sorted(order.tolist()) != list(range(n)):
-        raise ValueError(f"order must be a permutation of range(n), got {order.tolist()}")
-    k = np.empty(n)
-    k[order] = np.arange(1, n + 1) / (n + 1)
-    return np.stack([1.0 - k, k], axis=1).astype(np.float32)
-
-
-def demo_counts(demos, mdp: tabular.TabularMDP, cols: int) -> jax.Array:
-    """Undiscounted visit counts per episode ``[E, S + 1, A]`` of each expert's demonstrations, zero in the
-    absorbing state (its actions do nothing, so they say nothing about the preference)."""
-    counts = tabular.demo_occupancy(demos, mdp, cols, 1.0)
-    return counts.at[:, mdp.absorbing].set(0.0)
-
-
-def demo_exits(demos, mdp: tabular.TabularMDP, cols: int) -> jax.Array:
-    """Each demonstrated episode's behaviour ``[E, N, 2]`` as ``greedy_exits`` gives it for policies: the
-    state-action index of its transition into the absorbing state (-1 if none) and its steps until then."""
-    states = tabular.state_index(jnp.asarray(demos.obs), mdp, cols)
-    actions = jnp.asarray(demos.actions)
-    real = jnp.arange(states.shape[-1]) < jnp.asarray(demos.lengths)[..., None]
-    live = real & (states != mdp.absorbing)
-    entering = live & (mdp.next_state[states, actions] == mdp.absorbing)
-    index = jnp.where(entering, states * mdp.num_actions + actions, -1).max(-1)
-    return jnp.stack([index, live.sum(-1)], axis=-1).astype(jnp.int32)
-
-
 def candidate_policies(common: jax.Array, candidates: jax.Array, mdp: tabular.TabularMDP, config: Config,
                        q_init: jax.Array | None = None):
     """Soft-optimal Q tables ``[K, S + 1, A]`` and log-policies of ``common . w`` for every candidate ``w``."""
     q_init = jnp.zeros((candidates.shape[0], mdp.num_states, mdp.num_actions)) if q_init is None else q_init
-    q = jax.vmap(lambda w, q0: tabular.soft_value_iteration(common @ w, mdp, config.gamma, config.temperature, q0))(
+    q = jax.vmap(lambda w, q0: tabular.soft_value_iteration(common @ w, mdp, config.gamma, config.admm.temperature, q0))(
         candidates, q_init)
-    return q, jax.nn.log_softmax(q / config.temperature, axis=-1)
+    return q, jax.nn.log_softmax(q / config.admm.temperature, axis=-1)
 
 
 def log_likelihoods(log_policies: jax.Array, counts: jax.Array) -> jax.Array:
@@ -180,7 +150,7 @@ def make_infer(config: Config, mdp: tabular.TabularMDP, candidates: jax.Array, i
             policies = jax.vmap(agent.policy)(agents)
             policy_occupancy = jax.vmap(lambda p: tabular.occupancy(p, mdp, config.gamma))(policies)
             gains = admm.reward_gains(preferences, expert_occupancy, policy_occupancy)
-            metric = 1.0 + (expert_occupancy + policy_occupancy).mean(0)[..., None] if config.visit_metric else 1.0
+            metric = admm.penalty_metric(expert_occupancy, policy_occupancy, config)
             consensus = admm.consensus_admm(consensus, gains, metric, config)
             if infer:
                 stepped, best, q_candidates = preference_step(
@@ -196,8 +166,8 @@ def make_infer(config: Config, mdp: tabular.TabularMDP, candidates: jax.Array, i
             return (consensus, agents, preferences, q_candidates), metrics
 
         carry = (consensus, agents, initial, q_candidates)
-        (consensus, _, preferences, _), metrics = jax.lax.scan(round_, carry, (jax.random.split(key, config.rounds),
-                                                                              jnp.arange(config.rounds)))
+        (consensus, _, preferences, _), metrics = jax.lax.scan(round_, carry, (jax.random.split(key, config.admm.rounds),
+                                                                              jnp.arange(config.admm.rounds)))
         return consensus.common, preferences, metrics
 
     return run
@@ -222,24 +192,6 @@ def learned_interval(behaviour: np.ndarray, candidates: np.ndarray, index: int) 
         hi += 1
     w0 = candidates[:, 0]
     return float(min(w0[lo], w0[hi])), float(max(w0[lo], w0[hi]))
-
-
-def true_interval(sea_map, treasure: tuple[int, int]) -> tuple[float, float] | None:
-    """``[lo, hi]`` of the first weight ``a`` of ``w = [a, 1 - a]`` for which ``treasure`` is optimal under the
-    true reward (exact, from the undiscounted front; ties included), or None if it never is."""
-    steps = sea_map.treasure_steps(envs.dst.COMPASS_MOVES)
-    value, n = float(sea_map.grid[treasure]), float(steps[treasure])
-    lo, hi = 0.0, 1.0
-    for cell, m in steps.items():
-        # a * (value - v) - (1 - a) * (n - m) >= 0  <=>  a * (value - v + n - m) >= n - m
-        slope, need = value - float(sea_map.grid[cell]) + n - m, n - m
-        if slope > 0:
-            lo = max(lo, need / slope)
-        elif slope < 0:
-            hi = min(hi, need / slope)
-        elif need > 0:
-            return None
-    return (lo, max(lo, hi)) if lo <= hi + 1e-6 else None
 
 
 class InferenceResult(NamedTuple):
@@ -287,60 +239,59 @@ def infer_seeds(config: Config, occupancy, counts, exits, initial, keys, resolut
     )
 
 
-def length_order(counts: np.ndarray) -> np.ndarray:
-    """Experts sorted by their demonstrations' mean steps before the absorbing state, longest first."""
-    return np.argsort(-np.asarray(counts).sum((-1, -2)), kind="stable")
-
-
 def infer_and_learn(config: Config, demos: Demonstrations, key: jax.Array, initial=None, resolution: int = 100,
                     warmup: int = 0, rule: str = "closest") -> InferenceResult:
     """Infer every expert's preference from ``demos`` (labels, if any, are ignored) jointly with the common
-    reward, ``config.rounds`` rounds on ``config.env`` (a discrete DST map). ``initial`` ``[E, d]``: the
+    reward, ``config.admm.rounds`` rounds on ``config.env`` (a discrete DST map). ``initial`` ``[E, d]``: the
     starting preferences (which fix the gauge, see the module docstring); default: ``spread_preferences``
-    with the longest-travelling expert weighing objective 0 most (on DST objective 1 is the step cost)."""
+    (see ``inference_inputs``)."""
     env = envs.make(config.env, absorbing=True)
-    demos.validate(env)
     mdp = tabular.tabular_mdp(env)
-    cols = env.unwrapped.sea_map.cols
-    occupancy = tabular.demo_occupancy(demos, mdp, cols, config.gamma)
-    counts = demo_counts(demos, mdp, cols)
-    if initial is None:
-        initial = spread_preferences(length_order(counts), env.reward_dim)
-    initial = np.asarray(initial, np.float32)
+    occupancy, counts, exits, spread = evidence.inference_inputs(demos, env, mdp, config)
+    initial = spread if initial is None else np.asarray(initial, np.float32)
     if initial.shape != (demos.num_experts, env.reward_dim):
         raise ValueError(f"initial preferences have shape {initial.shape}, expected "
                          f"[{demos.num_experts}, {env.reward_dim}]: one per expert")
-    exits = demo_exits(demos, mdp, cols)
     return infer_seeds(config, occupancy[None], counts[None], exits[None], initial[None], key[None], resolution,
                        rule=rule, warmup=warmup)
 
 
-def optimal_cells(sea_map, preferences) -> list:
-    """The true-optimal treasure cell of every preference (``dst_oracle.optimal_treasure``)."""
-    return [dst_oracle.optimal_treasure(sea_map, w)[0] for w in np.asarray(preferences)]
+def train_seeds(config: Config, seeds) -> Result:
+    """ADMM for every seed in one program; with ``infer_preferences``, the experts' preferences are inferred
+    (``preference_warmup`` rounds under the spread start, then ``rounds`` rounds with the preference step)
+    from their demonstrations with the labels dropped. The ``Result``'s preferences are the inferred ones of
+    the first seed; ``history`` adds ``preferences`` and ``log_likelihood`` per round; ``extras`` holds
+    ``inferred_preferences [seeds, E, d]``, ``initial_preferences``, ``learned_interval [seeds, E, 2]``,
+    ``demo_return [E, d]`` (the demonstrations' mean true return) and ``inference`` (the
+    ``InferenceResult``, for ``write_run``)."""
+    c = config.admm
+    if not c.infer_preferences:
+        return admm.train_seeds(config, seeds)
+    config.validate(sections=ALGORITHM.sections)
+    if not config.env.startswith("dst"):
+        raise ValueError(f"algo 'admm' is tabular and needs a discrete DST env, got {config.env!r}")
+    start = time.perf_counter()
+    env = config.make_env(absorbing=True)
+    mdp = tabular.tabular_mdp(env)
+    demos = load_unlabelled_demonstrations(config, env)
+    occupancy, counts, exits, initial = evidence.inference_inputs(demos, env, mdp, config)
+    seeds = list(seeds)
+    keys = jax.vmap(jax.random.PRNGKey)(jnp.asarray(seeds))
+    tile = lambda x: np.broadcast_to(np.asarray(x), (len(seeds), *np.shape(x)))
+    inference = infer_seeds(config.replace(rounds=c.preference_warmup + c.rounds), tile(occupancy), tile(counts),
+                            tile(exits), tile(initial), keys, c.preference_resolution, rule=c.preference_rule,
+                            warmup=c.preference_warmup)
+    history = dict(inference.metrics)
+    history["return"] = np.einsum("sred,sred->sre", history["vector_return"], history["preferences"])
+    return Result(
+        config=config, preferences=inference.preferences[0], history=history,
+        final_params=inference.common_reward, best_params=None, best_return=history["return"].mean(-1).max(-1),
+        seconds=time.perf_counter() - start, runs={"seed": np.asarray(seeds)},
+        extras={"inferred_preferences": inference.preferences, "initial_preferences": inference.initial,
+                "learned_interval": inference.learned_interval, "demo_return": demos.mean_returns(),
+                "inference": inference})
 
 
-def write_run(result: InferenceResult, run_dir: str | None = None, log=print, seed_index: int = 0) -> dict:
-    """Log one seed's inferred preferences per round and at the end (with their learned-reward intervals) and,
-    with ``run_dir``, write them to ``run_dir/inferred_preferences.json``; returns what it writes."""
-    import json
-    import os
+ALGORITHM = admm.Tabular(sections=("admm",), train_seeds=train_seeds)
 
-    per_round = np.asarray(result.metrics["preferences"][seed_index], np.float64)  # [rounds, E, d]
-    for k, prefs in enumerate(per_round):
-        log(f"round {k + 1}: preferences {np.round(prefs, 3).tolist()}")
-    record = {
-        "initial": result.initial[seed_index].tolist(),
-        "inferred": per_round[-1].tolist(),
-        "interval_learned_reward": result.learned_interval[seed_index].tolist(),
-        "per_round": per_round.tolist(),
-        "log_likelihood_per_round": np.where(np.isnan(result.metrics["log_likelihood"][seed_index]), None,
-                                             result.metrics["log_likelihood"][seed_index]).tolist(),
-    }
-    log(f"inferred preferences {np.round(per_round[-1], 3).tolist()} (w[0] intervals with the same "
-        f"behaviour under the learned reward: {np.round(result.learned_interval[seed_index], 3).tolist()})")
-    if run_dir is not None:
-        os.makedirs(run_dir, exist_ok=True)
-        with open(os.path.join(run_dir, "inferred_preferences.json"), "w") as f:
-            json.dump(record, f, indent=1)
-    return record
+

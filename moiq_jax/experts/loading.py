@@ -59,3 +59,18 @@ def load_demonstrations(config: Config, env=None) -> Demonstrations:
                          f"than num_demos = {config.num_demos}")
     demos = demos.replace(**{name: np.asarray(getattr(demos, name))[:, : config.num_demos] for name in EPISODE_FIELDS})
     return take_experts(demos, index)
+
+
+def load_unlabelled_demonstrations(config: Config, env=None) -> Demonstrations:
+    """The demonstrations of a run that infers its experts' preferences, labels dropped: the first
+    ``num_demos`` episodes per expert of the configured file (labelled or not), or fresh oracle
+    demonstrations of the experts ``config.preferences`` names (whose labels are then hidden)."""
+    if config.demos is None:
+        return oracle_demonstrations(config.env, config.preferences, config.num_demos, config.seed).unlabelled()
+    env = config.make_env(absorbing=True) if env is None else env
+    demos = Demonstrations.load(config.demos, env)
+    if demos.num_episodes < config.num_demos:
+        raise ValueError(f"the demos in {config.demos!r} hold {demos.num_episodes} episodes per expert, fewer "
+                         f"than num_demos = {config.num_demos}")
+    demos = demos.replace(**{name: np.asarray(getattr(demos, name))[:, : config.num_demos] for name in EPISODE_FIELDS})
+    return demos.unlabelled()
