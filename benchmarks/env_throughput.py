@@ -117,7 +117,7 @@ def mujoco_report(names, batch_sizes, env_steps, mjx_envs, gym_seconds) -> None:
         rows = [("MO-Gymnasium (Python loop, 1 env)", theirs if gym_seconds > 0 else None),
                 (f"raw mujoco.rollout, episodes of {length}", raw)]
         for num_envs in batch_sizes:
-            steps = max(10, env_steps // num_envs)
+            steps = min(2000, max(10, env_steps // num_envs))
             rows.append((f"native {num_envs} envs", jax_steps_per_second(name, num_envs, steps, backend="mujoco")))
         for num_envs in mjx_envs:
             ours = jax_steps_per_second(name, num_envs, 10, repeats=1, backend="mjx")
@@ -141,7 +141,7 @@ def main() -> None:
     parser.add_argument("--batch-sizes", type=int, nargs="+", default=[1, 64, 1024], help="native backend")
     parser.add_argument("--mjx-batch-sizes", type=int, nargs="*", default=[64])
     parser.add_argument("--mujoco-env-steps", type=int, default=20_000,
-                        help="env steps per measured scan (all envs; at least 10 steps each)")
+                        help="env steps per measured scan (all envs; 10 to 2,000 steps each)")
     args = parser.parse_args()
 
     print(f"machine: {platform.machine()}, jax {jax.__version__} on {jax.devices()[0].platform}, "
