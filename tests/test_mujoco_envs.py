@@ -133,6 +133,25 @@ def test_state_at_is_gymnasium_set_state(name):
         np.testing.assert_array_equal(values[sim.nstate:], data.xpos[sim.body])
 
 
+@pytest.mark.parametrize("name", ["mo-hopper", "mo-ant"])
+def test_native_pending_starts_step_as_exact_starts(name):
+    """A reset (qpos0 + float32 noise, added at the next step) and a traced float32 ``state_at`` step
+    bit for bit as ``state_at`` of the same float64 values."""
+    base = envs.make(name, backend="mujoco").unwrapped
+    action = jnp.full((base.action_size,), 0.3)
+    step = jax.jit(base.step)
+    reset = jax.jit(base.reset)(jax.random.key(5))
+    qpos32 = jnp.linspace(-0.1, 0.1, base.mj_model.nq) + jnp.asarray(base.mj_model.qpos0, jnp.float32)
+    traced = jax.jit(base.state_at)(qpos32, jnp.full((base.mj_model.nv,), 0.05))
+    for start in (reset, traced):
+        qpos, qvel = base.qpos_qvel(start)
+        exact = base.state_at(qpos, qvel)
+        np.testing.assert_array_equal(np.asarray(start.obs), np.asarray(exact.obs))
+        np.testing.assert_array_equal(np.asarray(step(start, action).env_state.bits),
+                                      np.asarray(step(exact, action).env_state.bits))
+        np.testing.assert_array_equal(np.asarray(step(start, action).obs), np.asarray(step(exact, action).obs))
+
+
 @pytest.mark.parametrize("name", list(CASES))
 def test_reset_noise_matches_gymnasium(name):
     """Reset noise (shared by both backends): uniform on qpos, uniform or Gaussian on qvel, of the task's scale."""

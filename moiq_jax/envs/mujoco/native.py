@@ -17,9 +17,12 @@ it returns the state without the warm start (``mjSTATE_FULLPHYSICS``), so a step
 continued exactly from its output; a plain loop of ``mj_setState``/``mj_step``/``mj_getState`` on the
 pool runs within a few per cent of it (results/env_throughput/README.md).
 
-Reset and ``state_at`` need no physics: Gymnasium's ``mj_resetData`` + ``set_state`` leaves time and
-warm start zero, the free root body's ``xpos`` equal to its ``qpos[:3]`` and ``cfrc_ext`` zero, so the
-start state is assembled in float64 numpy (tests check it against ``mj_forward``).
+Reset and ``state_at`` need no physics and no callback: Gymnasium's ``mj_resetData`` + ``set_state``
+leaves time and warm start zero, the free root body's ``xpos`` equal to its ``qpos[:3]`` and ``cfrc_ext``
+zero. So a reset holds ``qpos0`` as float64 bits and its float32 noise as ``pending``, which the next
+step adds in float64 (as Gymnasium adds its noise) before stepping; ``state_at`` of float64 numpy arrays
+holds them exactly. (Tests check both against ``mj_forward``.) A callback costs about as much as
+stepping a few envs, and ``AutoReset`` resets every step.
 """
 
 from __future__ import annotations
@@ -44,9 +47,12 @@ MIN_ENVS_PER_CHUNK = 4  # smaller batches are stepped on the calling thread
 
 @struct.dataclass
 class NativeState:
-    """``bits``: float64 values as little-endian uint32 pairs, ``[width, 2]`` (see the module docstring)."""
+    """``bits``: float64 values as little-endian uint32 pairs, ``[width, 2]`` (see the module docstring).
+    ``pending``: float32 ``(qpos, qvel)`` offsets not yet added (reset noise; zero after a step): the next
+    step adds them in float64 first, as Gymnasium's reset adds its noise to ``init_qpos``."""
 
     bits: jax.Array
+    pending: jax.Array
 
 
 def to_bits(x: np.ndarray) -> np.ndarray:
@@ -81,10 +87,11 @@ class Simulator:
                 raise ValueError(f"{task.xml_file}: the main body {task.main_body!r} must have one free joint")
             self.body_qpos = slice(model.jnt_qposadr[joint], model.jnt_qposadr[joint] + 3)
         self.width = self.nstate + (3 if self.body is not None else 0)
-        self.datas: queue.SimpleQueue = queue.SimpleQueue()
-        for _ in range(max(nthread, 1)):
+        self.datas: queue.SimpleQueue = queue.SimpleQueue()  # one MjData per thread stepping at a time
+        for _ in range(nthread):
             self.datas.put(mujoco.MjData(model))
-        self.pool = ThreadPoolExecutor(nthread, thread_name_prefix="moiq-mujoco") if nthread > 1 else None
+        # the calling thread steps a chunk too, so nthread - 1 workers
+        self.pool = ThreadPoolExecutor(nthread - 1, thread_name_prefix="moiq-mujoco") if nthread > 1 else None
 
     def physics(self, values: np.ndarray, cfrc_ext: np.ndarray | None = None) -> Physics:
         """The rules' view of float64 states ``[n, width]``."""
@@ -93,35 +100,43 @@ class Simulator:
 
     # --- host functions (numpy in, numpy out; any leading batch shape) ---------------------------
 
-    def start(self, qpos_bits, qvel_bits, dq, dv):
-        """States after ``mj_resetData`` + ``set_state(qpos + dq, qvel + dv)``, and their observations."""
-        batch = dq.shape[:-1]
-        nq, nv = self.model.nq, self.model.nv
-        qpos = from_bits(qpos_bits).reshape(-1, nq) + np.asarray(dq, np.float32).reshape(-1, nq).astype(np.float64)
-        qvel = from_bits(qvel_bits).reshape(-1, nv) + np.asarray(dv, np.float32).reshape(-1, nv).astype(np.float64)
-        values = np.zeros((qpos.shape[0], self.width))
-        values[:, self.qpos], values[:, self.qvel] = qpos, qvel
+    def start_values(self, qpos: np.ndarray, qvel: np.ndarray) -> np.ndarray:
+        """float64 values ``[width]`` after ``mj_resetData`` + ``set_state(qpos, qvel)``."""
+        values = np.zeros(self.width)
+        values[self.qpos], values[self.qvel] = qpos, qvel
         if self.body is not None:
-            values[:, self.nstate:] = qpos[:, self.body_qpos]
-        cfrc = np.zeros((qpos.shape[0], self.model.nbody, 6)) if self.task.contact_forces else None
-        obs = self.task.observe(self.physics(values, cfrc), np).astype(np.float32)
-        return to_bits(values).reshape(*batch, self.width, 2), obs.reshape(*batch, -1)
+            values[self.nstate:] = values[self.qpos][self.body_qpos]
+        return values
 
-    def step(self, bits, action):
-        """One env step of every state in ``bits`` under ``action``: (bits, obs, reward, done)."""
+    def with_pending(self, values: np.ndarray, pending: np.ndarray) -> np.ndarray:
+        """``values`` ``[n, width]`` with the pending offsets ``[n, nq + nv]`` added (float64), in place."""
+        nq = self.model.nq
+        pending = pending.astype(np.float64)
+        for target, offset in ((self.qpos, pending[:, :nq]), (self.qvel, pending[:, nq:])):
+            np.add(values[:, target], offset, out=values[:, target], where=offset != 0)
+        if self.body is not None:
+            offset = pending[:, self.body_qpos]
+            np.add(values[:, self.nstate:], offset, out=values[:, self.nstate:], where=offset != 0)
+        return values
+
+    def step(self, bits, pending, action):
+        """One env step of every state in (``bits``, ``pending``) under ``action``: (bits, obs, reward, done)."""
         batch = action.shape[:-1]
-        values = from_bits(bits).reshape(-1, self.width)
+        values = self.with_pending(from_bits(bits).reshape(-1, self.width).copy(),
+                                   np.asarray(pending).reshape(-1, self.model.nq + self.model.nv))
         action = np.asarray(action, np.float32).reshape(-1, self.model.nu)
         n = values.shape[0]
         out = np.empty_like(values)
         cfrc = np.empty((n, self.model.nbody, 6)) if self.task.contact_forces else None
-        size = max(MIN_ENVS_PER_CHUNK, -(-n // (4 * self.nthread)))  # about 4 chunks per thread
+        size = max(MIN_ENVS_PER_CHUNK, -(-n // (2 * self.nthread)))  # about 2 chunks per thread
         chunks = [(lo, min(lo + size, n)) for lo in range(0, n, size)]
-        if self.pool is None or len(chunks) == 1:
-            self._step_range(0, n, values, action, out, cfrc)
-        else:
-            for future in [self.pool.submit(self._step_range, lo, hi, values, action, out, cfrc) for lo, hi in chunks]:
-                future.result()
+        futures = [self.pool.submit(self._step_range, lo, hi, values, action, out, cfrc)
+                   for lo, hi in chunks[1:]] if self.pool is not None else []
+        self._step_range(*chunks[0], values, action, out, cfrc)  # this thread takes a chunk too
+        for lo, hi in chunks[1:] if self.pool is None else []:
+            self._step_range(lo, hi, values, action, out, cfrc)
+        for future in futures:
+            future.result()
         before, after = self.physics(values), self.physics(out, cfrc)
         reward, done = self.task.reward_and_done(before, after, action, np)
         obs = self.task.observe(after, np)
@@ -172,18 +187,21 @@ class NativeEnv(MujocoEnv):
         return simulator(type(self.task), self.nthread)
 
     def _start(self, qpos, qvel, offset):
-        sim, model = self.sim, self.mj_model
-        base_q = self.task.init_qpos if offset else np.zeros(model.nq)
-        base_v = np.zeros(model.nv)
-        if not offset and is_concrete((qpos, qvel)) and not isinstance(qpos, jax.Array):
-            base_q, base_v = np.asarray(qpos, np.float64), np.asarray(qvel, np.float64)  # exact float64 start
-            qpos, qvel = np.zeros(model.nq, np.float32), np.zeros(model.nv, np.float32)
-        shapes = (jax.ShapeDtypeStruct((sim.width, 2), jnp.uint32),
-                  jax.ShapeDtypeStruct((self.observation_size,), jnp.float32))
-        bits, obs = jax.pure_callback(
-            sim.start, shapes, jnp.asarray(to_bits(base_q)), jnp.asarray(to_bits(base_v)),
-            jnp.asarray(qpos, jnp.float32), jnp.asarray(qvel, jnp.float32), vmap_method="broadcast_all")
-        return self.initial_state(NativeState(bits), obs)
+        sim, model, nq = self.sim, self.mj_model, self.mj_model.nq
+        if offset:  # reset: qpos0 + dq, 0 + dv
+            base_q, base_v = self.task.init_qpos, np.zeros(model.nv)
+        elif is_concrete((qpos, qvel)) and not isinstance(qpos, jax.Array):  # exact float64 start
+            base_q, base_v = np.asarray(qpos, np.float64), np.asarray(qvel, np.float64)
+            qpos, qvel = np.zeros(nq, np.float32), np.zeros(model.nv, np.float32)
+        else:  # float32 arrays, possibly traced
+            base_q, base_v = np.zeros(nq), np.zeros(model.nv)
+        pending = jnp.concatenate([jnp.asarray(qpos, jnp.float32), jnp.asarray(qvel, jnp.float32)])
+        bits = jnp.asarray(to_bits(sim.start_values(base_q, base_v)))
+        # The observation in float32 from the same rules (it is float32 anyway): set_state's cfrc_ext is zero.
+        cfrc = jnp.zeros((model.nbody, 6), jnp.float32) if self.task.contact_forces else None
+        view = Physics(jnp.asarray(base_q, jnp.float32) + pending[:nq], jnp.asarray(base_v, jnp.float32) + pending[nq:],
+                       None, cfrc)
+        return self.initial_state(NativeState(bits, pending), self.task.observe(view, jnp))
 
     def step(self, state, action):
         self.check_action(action)
@@ -193,14 +211,20 @@ class NativeEnv(MujocoEnv):
                   jax.ShapeDtypeStruct((self.observation_size,), jnp.float32),
                   jax.ShapeDtypeStruct((self.reward_dim,), jnp.float32),
                   jax.ShapeDtypeStruct((), jnp.bool_))
-        bits, obs, reward, done = jax.pure_callback(sim.step, shapes, state.env_state.bits, action,
+        env_state = state.env_state
+        bits, obs, reward, done = jax.pure_callback(sim.step, shapes, env_state.bits, env_state.pending, action,
                                                     vmap_method="broadcast_all")
-        return state.replace(env_state=NativeState(bits), obs=obs, reward=reward, done=done,
-                             truncated=jnp.zeros((), bool))
+        return state.replace(env_state=NativeState(bits, jnp.zeros_like(env_state.pending)), obs=obs, reward=reward,
+                             done=done, truncated=jnp.zeros((), bool))
 
     def values(self, state) -> np.ndarray:
-        """The float64 values a concrete ``env_state`` holds, ``[..., width]`` (for tests and inspection)."""
-        return from_bits(np.asarray(state.env_state.bits if hasattr(state, "env_state") else state.bits))
+        """The float64 values a concrete state holds, pending offsets added, ``[..., width]`` (for tests and
+        inspection)."""
+        env_state = state.env_state if hasattr(state, "env_state") else state
+        values = from_bits(np.asarray(env_state.bits))
+        pending = np.asarray(env_state.pending)
+        flat = self.sim.with_pending(values.reshape(-1, values.shape[-1]).copy(), pending.reshape(-1, pending.shape[-1]))
+        return flat.reshape(values.shape)
 
     def qpos_qvel(self, state) -> tuple[np.ndarray, np.ndarray]:
         """float64 ``qpos`` and ``qvel`` of a concrete state."""
