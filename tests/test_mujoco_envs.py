@@ -92,6 +92,8 @@ def test_backends_and_make():
         envs.make("mo-hopper", backend="brax")
     with pytest.raises(ValueError, match="no backend choice"):
         envs.make("dst", backend="mujoco")
+    with pytest.raises(ValueError, match="nthread"):
+        envs.make("mo-hopper", backend="mujoco", nthread=0)
     with pytest.raises(ValueError, match="mjx_solver"):
         envs.make("mo-hopper", backend="mjx", mjx_solver="slow")
     with pytest.raises(ValueError, match="shape"):

@@ -130,13 +130,13 @@ class Simulator:
         cfrc = np.empty((n, self.model.nbody, 6)) if self.task.contact_forces else None
         size = max(MIN_ENVS_PER_CHUNK, -(-n // (2 * self.nthread)))  # about 2 chunks per thread
         chunks = [(lo, min(lo + size, n)) for lo in range(0, n, size)]
-        futures = [self.pool.submit(self._step_range, lo, hi, values, action, out, cfrc)
-                   for lo, hi in chunks[1:]] if self.pool is not None else []
-        self._step_range(*chunks[0], values, action, out, cfrc)  # this thread takes a chunk too
-        for lo, hi in chunks[1:] if self.pool is None else []:
-            self._step_range(lo, hi, values, action, out, cfrc)
-        for future in futures:
-            future.result()
+        if self.pool is None:
+            self._step_range(0, n, values, action, out, cfrc)
+        else:
+            futures = [self.pool.submit(self._step_range, lo, hi, values, action, out, cfrc) for lo, hi in chunks[1:]]
+            self._step_range(*chunks[0], values, action, out, cfrc)  # this thread takes a chunk too
+            for future in futures:
+                future.result()
         before, after = self.physics(values), self.physics(out, cfrc)
         reward, done = self.task.reward_and_done(before, after, action, np)
         obs = self.task.observe(after, np)
