@@ -8,7 +8,7 @@ Solver settings (``mjx_solver``). ``"mujoco"`` keeps MuJoCo's (Newton, at most 1
 line-search iterations, tolerance 1e-8): MJX's solver stops at the tolerance, but under ``vmap`` every
 env waits for the slowest, so the caps set the cost on an accelerator. ``"fast"`` caps them (see
 ``MJX_SOLVERS``), the default; ``solver_iterations`` and ``ls_iterations`` override either. Measured
-errors and speeds: results/mujoco_moiq_speed/README.md.
+errors and expert returns: results/mujoco_moiq_speed/README.md.
 """
 
 from __future__ import annotations
