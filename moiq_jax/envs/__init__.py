@@ -3,7 +3,7 @@
 from moiq_jax.envs.base import Env, State, Wrapper
 from moiq_jax.envs.cdst import ContinuousDeepSeaTreasure
 from moiq_jax.envs.dst import CONCAVE_MAP, CONVEX_MAP, MINI_MAP, DeepSeaTreasure, SeaMap
-from moiq_jax.envs.registry import EnvSpec, make, register, registered, spec
+from moiq_jax.envs.registry import EnvSpec, backends, default_backend, make, register, registered, spec
 from moiq_jax.envs.wrappers import AbsorbingState, AutoReset, TimeLimit, VmapWrapper
 
 __all__ = [
@@ -21,6 +21,8 @@ __all__ = [
     "TimeLimit",
     "VmapWrapper",
     "Wrapper",
+    "backends",
+    "default_backend",
     "make",
     "register",
     "registered",

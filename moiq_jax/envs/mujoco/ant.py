@@ -2,15 +2,13 @@
 
 from __future__ import annotations
 
-import jax.numpy as jnp
-
-from moiq_jax.envs.mujoco.base import MujocoEnv, mjx, neg_squared_action
+from moiq_jax.envs.mujoco.base import Task, neg_squared_action
 
 CONTACT_COST_WEIGHT = 5e-4
 CONTACT_FORCE_RANGE = 1.0
 
 
-class Ant(MujocoEnv):
+class Ant(Task):
     """A four-legged ant (Ant-v5: frame skip 5, dt 0.05 s, reset noise 0.1: uniform on qpos, Gaussian
     on qvel).
 
@@ -29,35 +27,29 @@ class Ant(MujocoEnv):
     frame_skip = 5
     reset_noise_scale = 0.1
     qvel_noise_normal = True
+    main_body = "torso"  # Ant-v5's velocity is its xpos's (MuJoCo's kinematics at the last substep's start)
+    contact_forces = True
     reward_dim = 2
     observation_size = 105
     action_size = 8
 
-    def data_from_state(self, qpos, qvel):
-        # The velocity term uses the torso's ``xpos``, which Gymnasium's set_state computes; MJX's
-        # kinematics also normalises the root quaternion in qpos, which set_state leaves as given.
-        data = super().data_from_state(qpos, qvel)
-        return mjx.kinematics(self.mjx_model, data).replace(qpos=data.qpos)
+    def clipped_contact_forces(self, p, xp):
+        return xp.clip(p.cfrc_ext, -CONTACT_FORCE_RANGE, CONTACT_FORCE_RANGE)
 
-    def postprocess(self, data):
-        # Gymnasium calls mj_rnePostConstraint after mj_step for the contact forces.
-        return mjx.rne_postconstraint(self.mjx_model, data)
+    def observe(self, p, xp):
+        forces = self.clipped_contact_forces(p, xp)[..., 1:, :]
+        forces = forces.reshape(*forces.shape[:-2], -1)
+        return xp.concatenate([p.qpos[..., 2:], p.qvel, forces], axis=-1)
 
-    def contact_forces(self, data):
-        return jnp.clip(data._impl.cfrc_ext, -CONTACT_FORCE_RANGE, CONTACT_FORCE_RANGE)
+    def is_healthy(self, p, xp):
+        state = xp.concatenate([p.qpos, p.qvel], axis=-1)
+        z = p.qpos[..., 2]
+        return xp.all(xp.isfinite(state), axis=-1) & (z >= 0.2) & (z <= 1.0)
 
-    def observe(self, data):
-        forces = self.contact_forces(data)[1:].ravel()
-        return jnp.concatenate([data.qpos[2:], data.qvel, forces]).astype(jnp.float32)
-
-    def is_healthy(self, data):
-        state = jnp.concatenate([data.qpos, data.qvel])
-        z = data.qpos[2]
-        return jnp.all(jnp.isfinite(state)) & (z >= 0.2) & (z <= 1.0)
-
-    def reward_and_done(self, before, after, action):
-        healthy = self.is_healthy(after)
-        x_velocity = (after.xpos[1, 0] - before.xpos[1, 0]) / self.dt  # the torso, Ant-v5's main body
-        contact_cost = CONTACT_COST_WEIGHT * jnp.sum(jnp.square(self.contact_forces(after)))
-        reward = jnp.stack([x_velocity, neg_squared_action(action)])
-        return reward + healthy.astype(jnp.float32) - contact_cost, ~healthy
+    def reward_and_done(self, before, after, action, xp):
+        healthy = self.is_healthy(after, xp)
+        x_velocity = (after.xpos[..., 0] - before.xpos[..., 0]) / self.dt
+        forces = self.clipped_contact_forces(after, xp)
+        contact_cost = CONTACT_COST_WEIGHT * xp.sum(xp.square(forces), axis=(-2, -1))
+        reward = xp.stack([x_velocity, neg_squared_action(action, xp)], axis=-1)
+        return reward + (healthy - contact_cost)[..., None], ~healthy

@@ -1,80 +1,72 @@
-"""The shared base of the MuJoCo envs: Gymnasium v5's locomotion tasks stepped with MJX.
+"""Gymnasium v5's MuJoCo locomotion tasks, written once for two physics backends.
 
-The physics is ``mjx.step`` on a model made with ``mjx.put_model`` from Gymnasium's own MJCF file
-(vendored in ``assets/``), run ``frame_skip`` times per env step, as Gymnasium's ``MujocoEnv`` does.
-Brax's envs are not used: on CPU with these versions they are about 250x slower than calling MJX
-directly (see DESIGN.md). A task subclass gives the file, the sizes, the reset noise, the observation
-and the vector reward; everything else lives here.
+A ``Task`` holds one task's constants (MJCF file, frame skip, reset noise, sizes) and its rules
+(observation, vector reward, termination) as functions of a ``Physics`` view: ``qpos``, ``qvel``, the
+main body's ``xpos`` and ``cfrc_ext``. The rules take the array namespace ``xp`` and index with
+``[..., i]``, so the same code runs on one MJX state in ``jax.numpy`` (float32) and on a batch of
+MuJoCo states in ``numpy`` (float64, as Gymnasium computes them). The backends are ``mjx_env.MjxEnv``
+(pure JAX) and ``native.NativeEnv`` (MuJoCo's C engine behind ``jax.pure_callback``); ``MujocoEnv``
+is what they share: the model, ``dt``, the reset noise and the env protocol's sizes.
 
-Solver settings. The models keep MuJoCo's solver settings (Newton, at most 100 iterations and 50
-line-search iterations, tolerance 1e-8). MJX's solver is warm-started from the previous step's
-accelerations and stops at the tolerance, so it usually needs one to three iterations. Unbatched,
-capping them saves little (about 10 % for the hopper), but under ``vmap`` every env waits for the
-slowest, so caps matter for throughput (hopper, 64 envs: about 330 env-steps/s at MuJoCo's settings against about 1,500 at 1,024
-envs with 2 and 4, on 2 loaded cores). Parity with MuJoCo needs MuJoCo's settings: at 1 iteration and
-4 line-search iterations the hopper's observations drift 0.2 from MuJoCo's within 20 steps, at 2 and 4
-some hopper episodes and the walker2d (0.4 apart) fail the parity tests. So the defaults are kept;
-``solver_iterations`` and ``ls_iterations`` override them.
+Gymnasium's step is ``mj_step`` ``frame_skip`` times, then ``mj_rnePostConstraint`` where the task
+reads contact forces (Ant); its reset is ``mj_resetData`` then ``set_state(qpos, qvel)``
+(``mj_forward``). Quantities derived from positions after a step (``xpos``, ``cfrc_ext``) are
+MuJoCo's at the start of the last substep, as in Gymnasium.
 """
 
 from __future__ import annotations
 
 import abc
-import contextlib
 import functools
-import io
 import os
+from typing import Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
 import mujoco
 import numpy as np
 
-with contextlib.redirect_stdout(io.StringIO()):  # MJX prints a notice when its optional warp backend is absent
-    from mujoco import mjx
-
 from moiq_jax.envs.base import Env, State
 
 ASSETS = os.path.join(os.path.dirname(__file__), "assets")
+BACKENDS = ("mujoco", "mjx")
 
 
-class MujocoEnv(Env):
-    """A Gymnasium v5 MuJoCo task on MJX; ``env_state`` is the ``mjx.Data`` after the step.
+class Physics(NamedTuple):
+    """What the task rules read from a MuJoCo state (arrays of numpy or jax.numpy; leading batch axes
+    allowed). ``xpos``: the main body's position (None when the task has none); ``cfrc_ext``: all
+    bodies' external contact forces, ``[..., nbody, 6]`` (None unless the task reads them)."""
 
-    Subclasses set ``xml_file``, ``frame_skip``, ``reset_noise_scale``, ``reward_dim``,
-    ``observation_size``, ``action_size`` and implement ``observe`` and ``reward_and_done`` (``PlanarEnv`` gives the planar tasks' ``observe``).
-    The sizes are class constants so that building an env loads nothing; the model is loaded and
-    put on the device on first use. ``solver_iterations`` and ``ls_iterations`` (None: the model's)
-    cap the constraint solver.
-    """
+    qpos: Any
+    qvel: Any
+    xpos: Any = None
+    cfrc_ext: Any = None
+
+
+class Task(abc.ABC):
+    """One task's constants and rules; subclasses set the class constants and the two rules."""
 
     xml_file: str
     frame_skip: int
     reset_noise_scale: float
     qvel_noise_normal: bool = False  # Gaussian qvel reset noise (HalfCheetah, Ant) instead of uniform
-    deterministic_reset = False
+    main_body: str | None = None  # the body whose xpos the rules read (Ant's torso)
+    contact_forces: bool = False  # the rules read cfrc_ext (after mj_rnePostConstraint, as Gymnasium)
+    reward_dim: int
+    observation_size: int
+    action_size: int
 
-    def __init__(self, solver_iterations: int | None = None, ls_iterations: int | None = None):
-        self.solver_iterations = solver_iterations
-        self.ls_iterations = ls_iterations
-
-    @functools.cached_property
-    def mj_model(self) -> mujoco.MjModel:
-        """The native model, with this env's solver settings."""
+    def load_model(self) -> mujoco.MjModel:
+        """A fresh copy of the task's model (MuJoCo's solver settings)."""
         model = mujoco.MjModel.from_xml_path(os.path.join(ASSETS, self.xml_file))
-        if self.solver_iterations is not None:
-            model.opt.iterations = self.solver_iterations
-        if self.ls_iterations is not None:
-            model.opt.ls_iterations = self.ls_iterations
         if model.nu != self.action_size:
             raise ValueError(f"{self.xml_file} has {model.nu} actuators, expected {self.action_size}")
         return model
 
     @functools.cached_property
-    def mjx_model(self) -> mjx.Model:
-        """The device model; built eagerly even when first used inside a trace, so no tracer is cached."""
-        with jax.ensure_compile_time_eval():
-            return mjx.put_model(self.mj_model)
+    def mj_model(self) -> mujoco.MjModel:
+        """The task's model, loaded once (read it, do not change it)."""
+        return self.load_model()
 
     @property
     def dt(self) -> float:
@@ -83,87 +75,101 @@ class MujocoEnv(Env):
 
     @property
     def init_qpos(self) -> np.ndarray:
-        return self.mj_model.qpos0.astype(np.float32)
+        """Gymnasium's ``init_qpos``: the model's ``qpos0``, float64."""
+        return self.mj_model.qpos0.copy()
 
-    # --- what a task defines -------------------------------------------------------------------
+    @property
+    def main_body_id(self) -> int | None:
+        if self.main_body is None:
+            return None
+        return mujoco.mj_name2id(self.mj_model, mujoco.mjtObj.mjOBJ_BODY, self.main_body)
 
     @abc.abstractmethod
-    def observe(self, data: mjx.Data) -> jax.Array:
-        """Gymnasium's ``_get_obs`` for the state in ``data``."""
+    def observe(self, p: Physics, xp) -> Any:
+        """Gymnasium's ``_get_obs``."""
 
     @abc.abstractmethod
-    def reward_and_done(self, before: mjx.Data, after: mjx.Data, action: jax.Array) -> tuple[jax.Array, jax.Array]:
-        """The vector reward of the step from ``before`` to ``after`` under ``action``, and whether
-        ``after`` is terminal (Gymnasium's ``terminated``)."""
+    def reward_and_done(self, before: Physics, after: Physics, action, xp) -> tuple[Any, Any]:
+        """The vector reward of the step from ``before`` to ``after`` under ``action`` (``[..., reward_dim]``)
+        and whether ``after`` is terminal (Gymnasium's ``terminated``)."""
 
-    def postprocess(self, data: mjx.Data) -> mjx.Data:
-        """Quantities Gymnasium computes after ``mj_step`` (the Ant's contact forces); none by default."""
-        return data
-
-    # --- the protocol --------------------------------------------------------------------------
-
-    def data_from_state(self, qpos, qvel) -> mjx.Data:
-        """An ``mjx.Data`` at ``qpos``, ``qvel`` with zero controls, as Gymnasium's ``set_state``
-        after ``mj_resetData`` (quantities derived from positions are recomputed by the next step)."""
-        data = mjx.make_data(self.mjx_model)
-        return data.replace(qpos=jnp.asarray(qpos, data.qpos.dtype), qvel=jnp.asarray(qvel, data.qvel.dtype))
-
-    def state_from_data(self, data: mjx.Data) -> State:
-        return State(
-            env_state=data,
-            obs=self.observe(data),
-            reward=jnp.zeros((self.reward_dim,), jnp.float32),
-            done=jnp.zeros((), bool),
-            truncated=jnp.zeros((), bool),
-        )
-
-    def reset(self, key):
-        """Gymnasium's ``reset_model``: ``qpos0`` plus uniform noise, zero velocity plus uniform or
-        Gaussian noise, both of scale ``reset_noise_scale``."""
-        model = self.mj_model
-        key_pos, key_vel = jax.random.split(key)
-        scale = self.reset_noise_scale
-        qpos = jnp.asarray(self.init_qpos) + jax.random.uniform(key_pos, (model.nq,), minval=-scale, maxval=scale)
-        if self.qvel_noise_normal:
-            qvel = scale * jax.random.normal(key_vel, (model.nv,))
-        else:
-            qvel = jax.random.uniform(key_vel, (model.nv,), minval=-scale, maxval=scale)
-        return self.state_from_data(self.data_from_state(qpos, qvel))
-
-    def step(self, state, action):
-        self.check_action(action)
-        action = jnp.asarray(action, jnp.float32)
-        before = state.env_state
-        data = before.replace(ctrl=action.astype(before.ctrl.dtype))
-        data = jax.lax.fori_loop(0, self.frame_skip, lambda _, d: mjx.step(self.mjx_model, d), data)
-        data = self.postprocess(data)
-        reward, done = self.reward_and_done(before, data, action)
-        return state.replace(
-            env_state=data,
-            obs=self.observe(data),
-            reward=reward.astype(jnp.float32),
-            done=done,
-            truncated=jnp.zeros((), bool),  # only a time limit truncates
-        )
-
-    # --- terms shared by the tasks -------------------------------------------------------------
-
-    def x_velocity(self, before: mjx.Data, after: mjx.Data) -> jax.Array:
+    def x_velocity(self, before: Physics, after: Physics) -> Any:
         """Gymnasium's ``x_velocity``: the root's x displacement over the step divided by ``dt``."""
-        return (after.qpos[0] - before.qpos[0]) / self.dt
+        return (after.qpos[..., 0] - before.qpos[..., 0]) / self.dt
 
 
-def neg_squared_action(action: jax.Array) -> jax.Array:
+def neg_squared_action(action, xp) -> Any:
     """The control cost divided by its weight, negated: ``-sum(action ** 2)`` (MO-Gymnasium's cost objective)."""
-    return -jnp.sum(jnp.square(action))
+    return -xp.sum(xp.square(action), axis=-1)
 
 
-class PlanarEnv(MujocoEnv):
+class PlanarTask(Task):
     """A planar task whose root is a slider in x: observes ``qpos[1:]`` and ``qvel`` (clipped to
     ``+-clip_qvel`` unless None), as Gymnasium's Hopper, Walker2d and HalfCheetah do."""
 
     clip_qvel: float | None = None
 
-    def observe(self, data):
-        qvel = data.qvel if self.clip_qvel is None else jnp.clip(data.qvel, -self.clip_qvel, self.clip_qvel)
-        return jnp.concatenate([data.qpos[1:], qvel]).astype(jnp.float32)
+    def observe(self, p, xp):
+        qvel = p.qvel if self.clip_qvel is None else xp.clip(p.qvel, -self.clip_qvel, self.clip_qvel)
+        return xp.concatenate([p.qpos[..., 1:], qvel], axis=-1)
+
+
+class MujocoEnv(Env):
+    """A task on one backend; ``backend`` names it. Subclasses implement ``state_at``, ``reset_to``
+    (``state_at`` for a batch-free traced start) and ``step``."""
+
+    backend: str
+
+    def __init__(self, task: Task):
+        self.task = task
+        self.reward_dim = task.reward_dim
+        self.observation_size = task.observation_size
+        self.action_size = task.action_size
+
+    @property
+    def mj_model(self) -> mujoco.MjModel:
+        return self.task.mj_model
+
+    @property
+    def dt(self) -> float:
+        return self.task.dt
+
+    def reset_noise(self, key: jax.Array) -> tuple[jax.Array, jax.Array]:
+        """Gymnasium's ``reset_model`` noise: uniform on ``qpos`` and uniform or Gaussian on ``qvel``, of
+        scale ``reset_noise_scale``, drawn with ``jax.random`` (float32)."""
+        model, task = self.mj_model, self.task
+        key_pos, key_vel = jax.random.split(key)
+        scale = task.reset_noise_scale
+        dq = jax.random.uniform(key_pos, (model.nq,), minval=-scale, maxval=scale)
+        if task.qvel_noise_normal:
+            dv = scale * jax.random.normal(key_vel, (model.nv,))
+        else:
+            dv = jax.random.uniform(key_vel, (model.nv,), minval=-scale, maxval=scale)
+        return dq, dv
+
+    def reset(self, key):
+        """Gymnasium's reset: ``qpos0`` plus noise, zero velocity plus noise, then ``set_state``."""
+        dq, dv = self.reset_noise(key)
+        return self._start(dq, dv, offset=True)
+
+    def state_at(self, qpos, qvel) -> State:
+        """The state Gymnasium's ``set_state(qpos, qvel)`` gives after a reset (time and warm start zero),
+        with its observation. Concrete float64 numpy arrays are used exactly by the native backend."""
+        model = self.mj_model
+        for name, x, n in (("qpos", qpos, model.nq), ("qvel", qvel, model.nv)):
+            if np.shape(x) != (n,):
+                raise ValueError(f"{type(self.task).__name__}: {name} must have shape ({n},), got {np.shape(x)}")
+        return self._start(qpos, qvel, offset=False)
+
+    @abc.abstractmethod
+    def _start(self, qpos, qvel, offset: bool) -> State:
+        """The state after ``set_state`` at ``qpos``, ``qvel`` (added to ``qpos0`` and zero if ``offset``)."""
+
+    def initial_state(self, env_state, obs) -> State:
+        return State(
+            env_state=env_state,
+            obs=jnp.asarray(obs, jnp.float32),
+            reward=jnp.zeros((self.reward_dim,), jnp.float32),
+            done=jnp.zeros((), bool),
+            truncated=jnp.zeros((), bool),
+        )

@@ -2,12 +2,10 @@
 
 from __future__ import annotations
 
-import jax.numpy as jnp
-
-from moiq_jax.envs.mujoco.base import PlanarEnv, neg_squared_action
+from moiq_jax.envs.mujoco.base import PlanarTask, neg_squared_action
 
 
-class HalfCheetah(PlanarEnv):
+class HalfCheetah(PlanarTask):
     """A planar cheetah (HalfCheetah-v5: frame skip 5, dt 0.05 s, reset noise 0.1: uniform on qpos,
     Gaussian on qvel).
 
@@ -23,6 +21,7 @@ class HalfCheetah(PlanarEnv):
     observation_size = 17
     action_size = 6
 
-    def reward_and_done(self, before, after, action):
-        reward = jnp.stack([self.x_velocity(before, after), neg_squared_action(action)])
-        return reward, jnp.zeros((), bool)
+    def reward_and_done(self, before, after, action, xp):
+        velocity = self.x_velocity(before, after)
+        reward = xp.stack([velocity, neg_squared_action(action, xp)], axis=-1)
+        return reward, xp.zeros(velocity.shape, bool)

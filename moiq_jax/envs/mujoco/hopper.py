@@ -2,12 +2,10 @@
 
 from __future__ import annotations
 
-import jax.numpy as jnp
-
-from moiq_jax.envs.mujoco.base import PlanarEnv, neg_squared_action
+from moiq_jax.envs.mujoco.base import PlanarTask, neg_squared_action
 
 
-class Hopper(PlanarEnv):
+class Hopper(PlanarTask):
     """A one-legged planar hopper (Hopper-v5: frame skip 4, dt 0.008 s, uniform reset noise 5e-3).
 
     Observation (11): ``qpos[1:]`` (height, angles) and ``qvel`` clipped to [-10, 10].
@@ -25,13 +23,13 @@ class Hopper(PlanarEnv):
     observation_size = 11
     action_size = 3
 
-    def is_healthy(self, data):
-        z, angle = data.qpos[1], data.qpos[2]
-        state = jnp.concatenate([data.qpos, data.qvel])[2:]
-        return jnp.all(jnp.abs(state) < 100.0) & (z > 0.7) & (jnp.abs(angle) < 0.2)
+    def is_healthy(self, p, xp):
+        z, angle = p.qpos[..., 1], p.qpos[..., 2]
+        state = xp.concatenate([p.qpos, p.qvel], axis=-1)[..., 2:]
+        return xp.all(xp.abs(state) < 100.0, axis=-1) & (z > 0.7) & (xp.abs(angle) < 0.2)
 
-    def reward_and_done(self, before, after, action):
-        healthy = self.is_healthy(after)
-        height = 10.0 * (after.qpos[1] - self.init_qpos[1])
-        reward = jnp.stack([self.x_velocity(before, after), height, neg_squared_action(action)])
-        return reward + healthy.astype(jnp.float32), ~healthy
+    def reward_and_done(self, before, after, action, xp):
+        healthy = self.is_healthy(after, xp)
+        height = 10.0 * (after.qpos[..., 1] - self.init_qpos[1])
+        reward = xp.stack([self.x_velocity(before, after), height, neg_squared_action(action, xp)], axis=-1)
+        return reward + healthy[..., None], ~healthy

@@ -2,12 +2,10 @@
 
 from __future__ import annotations
 
-import jax.numpy as jnp
-
-from moiq_jax.envs.mujoco.base import PlanarEnv, neg_squared_action
+from moiq_jax.envs.mujoco.base import PlanarTask, neg_squared_action
 
 
-class Walker2d(PlanarEnv):
+class Walker2d(PlanarTask):
     """A two-legged planar walker (Walker2d-v5: frame skip 4, dt 0.008 s, uniform reset noise 5e-3).
 
     Observation (17): ``qpos[1:]`` (height, angles) and ``qvel`` clipped to [-10, 10].
@@ -24,11 +22,11 @@ class Walker2d(PlanarEnv):
     observation_size = 17
     action_size = 6
 
-    def is_healthy(self, data):
-        z, angle = data.qpos[1], data.qpos[2]
+    def is_healthy(self, p, xp):
+        z, angle = p.qpos[..., 1], p.qpos[..., 2]
         return (z > 0.8) & (z < 2.0) & (angle > -1.0) & (angle < 1.0)
 
-    def reward_and_done(self, before, after, action):
-        healthy = self.is_healthy(after)
-        reward = jnp.stack([self.x_velocity(before, after), neg_squared_action(action)])
-        return reward + healthy.astype(jnp.float32), ~healthy
+    def reward_and_done(self, before, after, action, xp):
+        healthy = self.is_healthy(after, xp)
+        reward = xp.stack([self.x_velocity(before, after), neg_squared_action(action, xp)], axis=-1)
+        return reward + healthy[..., None], ~healthy

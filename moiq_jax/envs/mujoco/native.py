@@ -1,0 +1,232 @@
+"""The ``"mujoco"`` backend: a task stepped by MuJoCo's C engine, pure and jittable, for CPUs.
+
+``env_state`` is a ``NativeState``: MuJoCo's state as float64 values carried bit for bit as uint32
+pairs (JAX runs without x64, and rounding the state to float32 between steps makes rollouts drift
+apart): ``mj_getState`` for ``STATE_SPEC`` (time, qpos, qvel, act and the solver's warm start
+``qacc_warmstart``), then the main body's ``xpos`` where the task reads it. A step is one
+``jax.pure_callback`` with ``vmap_method="broadcast_all"``, so a whole (nested) ``vmap`` batch is one
+call; the callback sets each env's state into an ``MjData``, runs ``mj_step`` ``frame_skip`` times
+(and ``mj_rnePostConstraint`` where the task reads contact forces, as Gymnasium), reads the state
+back and applies the task's rules in float64 numpy, as Gymnasium does. Outputs depend only on inputs
+(every input of ``mj_step`` is set from the state), so steps are bit-reproducible and the step is
+pure: it runs under ``jit``, ``vmap`` and ``lax.scan``.
+
+Threads: the envs of a batch are split into chunks stepped on a persistent thread pool (one
+``MjData`` per thread; MuJoCo's bindings release the GIL). ``mujoco.rollout.Rollout`` is not used:
+it returns the state without the warm start (``mjSTATE_FULLPHYSICS``), so a step could not be
+continued exactly from its output; a plain loop of ``mj_setState``/``mj_step``/``mj_getState`` on the
+pool runs within a few per cent of it (results/env_throughput/README.md).
+
+Reset and ``state_at`` need no physics and no callback: Gymnasium's ``mj_resetData`` + ``set_state``
+leaves time and warm start zero, the free root body's ``xpos`` equal to its ``qpos[:3]`` and ``cfrc_ext``
+zero. So a reset holds ``qpos0`` as float64 bits and its float32 noise as ``pending``, which the next
+step adds in float64 (as Gymnasium adds its noise) before stepping; ``state_at`` of float64 numpy arrays
+holds them exactly. (Tests check both against ``mj_forward``.) A callback costs about as much as
+stepping a few envs, and ``AutoReset`` resets every step.
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+import queue
+from concurrent.futures import ThreadPoolExecutor
+
+import jax
+import jax.numpy as jnp
+import mujoco
+import numpy as np
+from flax import struct
+
+from moiq_jax.envs.base import is_concrete
+from moiq_jax.envs.mujoco.base import MujocoEnv, Physics, Task
+
+STATE_SPEC = int(mujoco.mjtState.mjSTATE_FULLPHYSICS | mujoco.mjtState.mjSTATE_WARMSTART)
+MIN_ENVS_PER_CHUNK = 4  # smaller batches are stepped on the calling thread
+
+
+@struct.dataclass
+class NativeState:
+    """``bits``: float64 values as little-endian uint32 pairs, ``[width, 2]`` (see the module docstring).
+    ``pending``: float32 ``(qpos, qvel)`` offsets not yet added (reset noise; zero after a step): the next
+    step adds them in float64 first, as Gymnasium's reset adds its noise to ``init_qpos``."""
+
+    bits: jax.Array
+    pending: jax.Array
+
+
+def to_bits(x: np.ndarray) -> np.ndarray:
+    """float64 ``[..., n]`` -> its bits as uint32 ``[..., n, 2]`` (exact)."""
+    x = np.ascontiguousarray(x, np.float64)
+    return x.view(np.uint32).reshape(*x.shape, 2)
+
+
+def from_bits(bits: np.ndarray) -> np.ndarray:
+    """uint32 ``[..., n, 2]`` -> the float64 ``[..., n]`` they hold (exact)."""
+    bits = np.ascontiguousarray(bits, np.uint32)
+    return bits.view(np.float64).reshape(bits.shape[:-1])
+
+
+class Simulator:
+    """One task's model, a pool of ``MjData`` and threads, and the batched host functions of the backend."""
+
+    def __init__(self, task: Task, nthread: int):
+        self.task = task
+        self.model = model = task.mj_model
+        self.nthread = nthread
+        self.nstate = mujoco.mj_stateSize(model, STATE_SPEC)
+        if model.na or mujoco.mj_stateSize(model, STATE_SPEC) != 1 + model.nq + 2 * model.nv:
+            raise ValueError(f"{task.xml_file}: the native backend supports models with time, qpos, qvel and "
+                             "warm start only (no actuator activations, history or plugin state)")
+        self.qpos = slice(1, 1 + model.nq)
+        self.qvel = slice(1 + model.nq, 1 + model.nq + model.nv)
+        self.body = task.main_body_id
+        if self.body is not None:
+            joint = model.body_jntadr[self.body]
+            if model.body_jntnum[self.body] != 1 or model.jnt_type[joint] != mujoco.mjtJoint.mjJNT_FREE:
+                raise ValueError(f"{task.xml_file}: the main body {task.main_body!r} must have one free joint")
+            self.body_qpos = slice(model.jnt_qposadr[joint], model.jnt_qposadr[joint] + 3)
+        self.width = self.nstate + (3 if self.body is not None else 0)
+        self.datas: queue.SimpleQueue = queue.SimpleQueue()  # one MjData per thread stepping at a time
+        for _ in range(nthread):
+            self.datas.put(mujoco.MjData(model))
+        # the calling thread steps a chunk too, so nthread - 1 workers
+        self.pool = ThreadPoolExecutor(nthread - 1, thread_name_prefix="moiq-mujoco") if nthread > 1 else None
+
+    def physics(self, values: np.ndarray, cfrc_ext: np.ndarray | None = None) -> Physics:
+        """The rules' view of float64 states ``[n, width]``."""
+        xpos = values[:, self.nstate:self.nstate + 3] if self.body is not None else None
+        return Physics(values[:, self.qpos], values[:, self.qvel], xpos, cfrc_ext)
+
+    # --- host functions (numpy in, numpy out; any leading batch shape) ---------------------------
+
+    def start_values(self, qpos: np.ndarray, qvel: np.ndarray) -> np.ndarray:
+        """float64 values ``[width]`` after ``mj_resetData`` + ``set_state(qpos, qvel)``."""
+        values = np.zeros(self.width)
+        values[self.qpos], values[self.qvel] = qpos, qvel
+        if self.body is not None:
+            values[self.nstate:] = values[self.qpos][self.body_qpos]
+        return values
+
+    def with_pending(self, values: np.ndarray, pending: np.ndarray) -> np.ndarray:
+        """``values`` ``[n, width]`` with the pending offsets ``[n, nq + nv]`` added (float64), in place."""
+        nq = self.model.nq
+        pending = pending.astype(np.float64)
+        for target, offset in ((self.qpos, pending[:, :nq]), (self.qvel, pending[:, nq:])):
+            np.add(values[:, target], offset, out=values[:, target], where=offset != 0)
+        if self.body is not None:
+            offset = pending[:, self.body_qpos]
+            np.add(values[:, self.nstate:], offset, out=values[:, self.nstate:], where=offset != 0)
+        return values
+
+    def step(self, bits, pending, action):
+        """One env step of every state in (``bits``, ``pending``) under ``action``: (bits, obs, reward, done)."""
+        batch = action.shape[:-1]
+        values = self.with_pending(from_bits(bits).reshape(-1, self.width).copy(),
+                                   np.asarray(pending).reshape(-1, self.model.nq + self.model.nv))
+        action = np.asarray(action, np.float32).reshape(-1, self.model.nu)
+        n = values.shape[0]
+        out = np.empty_like(values)
+        cfrc = np.empty((n, self.model.nbody, 6)) if self.task.contact_forces else None
+        size = max(MIN_ENVS_PER_CHUNK, -(-n // (2 * self.nthread)))  # about 2 chunks per thread
+        chunks = [(lo, min(lo + size, n)) for lo in range(0, n, size)]
+        if self.pool is None:
+            self._step_range(0, n, values, action, out, cfrc)
+        else:
+            futures = [self.pool.submit(self._step_range, lo, hi, values, action, out, cfrc) for lo, hi in chunks[1:]]
+            self._step_range(*chunks[0], values, action, out, cfrc)  # this thread takes a chunk too
+            for future in futures:
+                future.result()
+        before, after = self.physics(values), self.physics(out, cfrc)
+        reward, done = self.task.reward_and_done(before, after, action, np)
+        obs = self.task.observe(after, np)
+        return (to_bits(out).reshape(*batch, self.width, 2), obs.astype(np.float32).reshape(*batch, -1),
+                reward.astype(np.float32).reshape(*batch, -1), np.asarray(done, bool).reshape(batch))
+
+    def _step_range(self, lo, hi, values, action, out, cfrc):
+        model, data, ns, frame_skip = self.model, self.datas.get(), self.nstate, self.task.frame_skip
+        try:
+            for i in range(lo, hi):
+                mujoco.mj_setState(model, data, values[i, :ns], STATE_SPEC)
+                data.ctrl[:] = action[i]
+                mujoco.mj_step(model, data, frame_skip)
+                if cfrc is not None:
+                    mujoco.mj_rnePostConstraint(model, data)
+                    cfrc[i] = data.cfrc_ext
+                mujoco.mj_getState(model, data, out[i, :ns], STATE_SPEC)
+                if self.body is not None:
+                    out[i, ns:] = data.xpos[self.body]
+        finally:
+            self.datas.put(data)
+
+
+@functools.cache
+def simulator(task_class: type[Task], nthread: int) -> Simulator:
+    """One ``Simulator`` (and thread pool) per task and thread count, shared by every env built."""
+    return Simulator(task_class(), nthread)
+
+
+def default_threads() -> int:
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+
+
+class NativeEnv(MujocoEnv):
+    """A task on MuJoCo's C engine; ``nthread`` (default: the CPUs this process may use) steps a batch."""
+
+    backend = "mujoco"
+
+    def __init__(self, task: Task, nthread: int | None = None):
+        nthread = default_threads() if nthread is None else int(nthread)
+        if nthread < 1:
+            raise ValueError(f"nthread must be at least 1, got {nthread}")
+        super().__init__(task)
+        self.nthread = nthread
+
+    @property
+    def sim(self) -> Simulator:
+        return simulator(type(self.task), self.nthread)
+
+    def _start(self, qpos, qvel, offset):
+        sim, model, nq = self.sim, self.mj_model, self.mj_model.nq
+        if offset:  # reset: qpos0 + dq, 0 + dv
+            base_q, base_v = self.task.init_qpos, np.zeros(model.nv)
+        elif is_concrete((qpos, qvel)) and not isinstance(qpos, jax.Array):  # exact float64 start
+            base_q, base_v = np.asarray(qpos, np.float64), np.asarray(qvel, np.float64)
+            qpos, qvel = np.zeros(nq, np.float32), np.zeros(model.nv, np.float32)
+        else:  # float32 arrays, possibly traced
+            base_q, base_v = np.zeros(nq), np.zeros(model.nv)
+        pending = jnp.concatenate([jnp.asarray(qpos, jnp.float32), jnp.asarray(qvel, jnp.float32)])
+        bits = jnp.asarray(to_bits(sim.start_values(base_q, base_v)))
+        # The observation in float32 from the same rules (it is float32 anyway): set_state's cfrc_ext is zero.
+        cfrc = jnp.zeros((model.nbody, 6), jnp.float32) if self.task.contact_forces else None
+        view = Physics(jnp.asarray(base_q, jnp.float32) + pending[:nq], jnp.asarray(base_v, jnp.float32) + pending[nq:],
+                       None, cfrc)
+        return self.initial_state(NativeState(bits, pending), self.task.observe(view, jnp))
+
+    def step(self, state, action):
+        self.check_action(action)
+        action = jnp.asarray(action, jnp.float32)
+        sim = self.sim
+        shapes = (jax.ShapeDtypeStruct((sim.width, 2), jnp.uint32),
+                  jax.ShapeDtypeStruct((self.observation_size,), jnp.float32),
+                  jax.ShapeDtypeStruct((self.reward_dim,), jnp.float32),
+                  jax.ShapeDtypeStruct((), jnp.bool_))
+        env_state = state.env_state
+        bits, obs, reward, done = jax.pure_callback(sim.step, shapes, env_state.bits, env_state.pending, action,
+                                                    vmap_method="broadcast_all")
+        return state.replace(env_state=NativeState(bits, jnp.zeros_like(env_state.pending)), obs=obs, reward=reward,
+                             done=done, truncated=jnp.zeros((), bool))
+
+    def values(self, state) -> np.ndarray:
+        """The float64 values a concrete state holds, pending offsets added, ``[..., width]`` (for tests and
+        inspection)."""
+        env_state = state.env_state if hasattr(state, "env_state") else state
+        values = from_bits(np.asarray(env_state.bits))
+        pending = np.asarray(env_state.pending)
+        flat = self.sim.with_pending(values.reshape(-1, values.shape[-1]).copy(), pending.reshape(-1, pending.shape[-1]))
+        return flat.reshape(values.shape)
+
+    def qpos_qvel(self, state) -> tuple[np.ndarray, np.ndarray]:
+        """float64 ``qpos`` and ``qvel`` of a concrete state."""
+        values = self.values(state)
+        return values[..., self.sim.qpos], values[..., self.sim.qvel]
