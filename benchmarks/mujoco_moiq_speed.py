@@ -4,7 +4,7 @@ each MuJoCo backend, in the same run, from the committed demonstrations.
     python benchmarks/mujoco_moiq_speed.py [--backends mujoco mjx] [--steps 512] [--hidden 256 256]
         [--batch-size 256] [--iq-learn]
 
-The whole ``train(key, beta)`` program is compiled ahead (compile time printed apart) and timed over
+The whole ``train(key, hyper)`` program is compiled ahead (compile time printed apart) and timed over
 ``--steps`` env steps per expert, then scaled to 100K; the config is experiments/paper_mujoco.py's (16 envs
 per expert, 16 updates per vectorised step, evaluations excluded by one evaluation per run), so the time
 includes the updates, which cost most. ``--iq-learn`` adds IQ-Learn (3 models) on each backend.
@@ -13,8 +13,6 @@ includes the updates, which cost most. ``--iq-learn`` adds IQ-Learn (3 models) o
 from __future__ import annotations
 
 import argparse
-import contextlib
-import dataclasses
 import pathlib
 import platform
 import time
@@ -22,38 +20,22 @@ import time
 import jax
 import jax.numpy as jnp
 
-from moiq_jax.algos import moiq_train
-from moiq_jax.config import Config, tuned
-from moiq_jax.envs import registry
+from moiq_jax.algos.offpolicy import make_trainer
+from moiq_jax.config import tuned
+from moiq_jax.train import algorithm_of
 
 DEMOS = pathlib.Path(__file__).resolve().parents[1] / "experiments" / "demos" / "mo-hopper.npz"
 
 
-@contextlib.contextmanager
-def env_backend(config: Config, backend: str):
-    """``config`` running its env on ``backend``: through ``Config.env_backend`` where the config has it,
-    else by making ``backend`` the registry's default while the program is built."""
-    if "env_backend" in {f.name for f in dataclasses.fields(Config)}:
-        yield config.replace(env_backend=backend)
-        return
-    default = registry.default_backend
-    registry.default_backend = lambda: backend
-    try:
-        yield config
-    finally:
-        registry.default_backend = default
-
-
 def seconds_per_run(config, backend: str) -> tuple[float, float]:
-    """(compile seconds, run seconds) of one whole ``train(key, beta)`` of ``config`` on ``backend``."""
-    key, beta = jax.random.PRNGKey(0), jnp.float32(config.beta)
-    with env_backend(config, backend) as backend_config:
-        trainer = moiq_train.make_train(backend_config)
-        start = time.perf_counter()
-        program = jax.jit(trainer.train).lower(key, beta).compile()
-        compiled = time.perf_counter() - start
+    """(compile seconds, run seconds) of one whole ``train(key, hyper)`` of ``config`` on ``backend``."""
+    trainer = make_trainer(config.replace(env_backend=backend), algorithm_of(config))
+    key, hyper = jax.random.PRNGKey(0), {name: jnp.float32(value) for name, value in trainer.hyper.items()}
     start = time.perf_counter()
-    jax.block_until_ready(program(key, beta))
+    program = jax.jit(trainer.train).lower(key, hyper).compile()
+    compiled = time.perf_counter() - start
+    start = time.perf_counter()
+    jax.block_until_ready(program(key, hyper))
     return compiled, time.perf_counter() - start
 
 
@@ -70,7 +52,8 @@ def main() -> None:
                    hidden_sizes=tuple(args.hidden), batch_size=args.batch_size)
     device = jax.devices()[0]
     print(f"{platform.machine()}, jax {jax.__version__} on {device.platform} ({device.device_kind}); mo-hopper, "
-          f"3 experts, hidden {config.hidden_sizes}, batch {config.batch_size}, {args.steps} env steps per expert")
+          f"3 experts, hidden {config.offpolicy.hidden_sizes}, batch {config.offpolicy.batch_size}, {args.steps} env "
+          "steps per expert")
     runs = [("MOIQ (one model)", config)]
     if args.iq_learn:
         runs.append(("IQ-Learn (3 models)", config.replace(algo="iq_learn", beta=0.0)))

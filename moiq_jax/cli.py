@@ -20,12 +20,16 @@ def _cmd_envs(args) -> int:
 
     specs = sorted(envs.registered().items())
     width = max(len("name"), *(len(name) for name, _ in specs))
-    print(f"{'name':<{width}} {'obs':>4} {'actions':<13} {'reward_dim':>10} {'episode':>8}  description")
+    print(f"{'name':<{width}} {'obs':>4} {'actions':<13} {'reward_dim':>10} {'episode':>8}  {'backends':<11}  "
+          "description")
     for name, env_spec in specs:
         env = envs.make(name)
         actions = f"{env.num_actions} discrete" if env.discrete else f"{env.action_size}-D box"
+        backends = ",".join(envs.backends(name)) or "jax"  # the default first
         print(f"{name:<{width}} {env.observation_size:>4} {actions:<13} {env.reward_dim:>10} "
-              f"{env_spec.episode_length:>8}  {env_spec.description}")
+              f"{env_spec.episode_length:>8}  {backends:<11}  {env_spec.description}")
+    print(f"backends: the first is the default here ({envs.default_backend()}); choose with --env-backend "
+          "(mujoco: MuJoCo's C engine, for CPUs; mjx: MJX, for accelerators)")
     return 0
 
 

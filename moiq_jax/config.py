@@ -173,7 +173,7 @@ class Config:
     sections (``Config(moiq=MOIQConfig(beta=0.5))``)."""
 
     env: str = _field("cdst", "a registered env (see `moiq envs`)")
-    env_backend: str | None = _field(None, "the env's simulation backend (MuJoCo tasks: mujoco or mjx); "
+    env_backend: str | None = _field(None, "the env's simulation backend (MuJoCo tasks: mujoco, MuJoCo's C engine, or mjx); "
                                            "None: the env's default")
     algo: str = _field("moiq", "moiq, iq_learn or gail (one model per expert), admm (discrete DST), sac (train experts)")
     preferences: tuple[tuple[float, ...], ...] = _field(((0.9, 0.1), (0.5, 0.5), (0.1, 0.9)),
@@ -236,8 +236,9 @@ class Config:
             raise ValueError(f"num_demos must be at least 1, got {self.num_demos}")
         if not 0.0 <= self.gamma < 1.0:
             raise ValueError(f"gamma must be in [0, 1), got {self.gamma}")
-        if self.env_backend is not None and not isinstance(self.env_backend, str):
-            raise ValueError(f"env_backend must be a backend name or None, got {self.env_backend!r}")
+        if self.env_backend is not None and self.env_backend not in envs.backends(self.env):
+            offered = ", ".join(envs.backends(self.env)) or "none: it is pure JAX"
+            raise ValueError(f"env_backend {self.env_backend!r} is not a backend of {self.env!r} ({offered})")
         for name in sections:
             getattr(self, name).validate()
         reward_dim = env.reward_dim if env is not None else len(self.preferences[0])

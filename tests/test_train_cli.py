@@ -129,6 +129,10 @@ def moiq(*args):
         (["--preferences", "1.5,-0.5"], "non-negative"),
         (["--beta", "-1"], "beta must be non-negative"),
         (["--demos", "missing.npz"], "demos file 'missing.npz' does not exist"),
+        (["--env-backend", "mjx"], "env_backend 'mjx' is not a backend of 'cdst' (none: it is pure JAX)"),
+        (["--env", "mo-hopper", "--env-backend", "brax"], "env_backend 'brax' is not a backend of 'mo-hopper' (mujoco"),
+        (["--algo", "admm", "--env", "dst", "--infer-preferences", "--preference-rule", "nearest"],
+         "unknown preference_rule 'nearest'"),
     ],
 )
 def test_bad_input_is_a_clear_error(args, message, tmp_path):
