@@ -2,13 +2,13 @@
 the compiled update), its share of a large float32 matrix product's rate measured in the same run, and SAC
 against the same step written as a peer would (CleanRL-style JAX: flax MLPs, optax adam, twin Q).
 
-    python benchmarks/update_speed.py [--updates 50] [--repeats 3] [--sizes 256:256 128:128]
+    python benchmarks/update_speed.py [--updates 50] [--repeats 3] [--sizes 256:256 128:128] [--only moiq3 iq3]
 
 Networks and batches are built from mo-hopper's sizes (obs 11, action 3, reward 3) without stepping an env.
 Each program runs ``--updates`` updates in one ``lax.scan`` (as training does, so dispatch is amortised) on
 batches drawn from full replay buffers (and demonstrations) with offpolicy.py's own samplers; the best of
 ``--repeats`` timings counts, and the matrix product is timed between the algorithms so that its rate
-reflects the same load. The figures with the sampling left out are printed beside them.
+reflects the same load. With ``--no-sampling`` the update on one fixed batch is timed too (last column).
 SAC xE and IQ-Learn xE are E single-expert models vmapped (as ``offpolicy`` trains them); MOIQ xE is one
 model for E experts.
 """
@@ -228,6 +228,7 @@ def main() -> None:
     parser.add_argument("--updates", type=int, default=50, help="updates per timed program (one lax.scan)")
     parser.add_argument("--repeats", type=int, default=3, help="timings per program; the best counts")
     parser.add_argument("--sizes", nargs="+", default=["256:256", "128:128"], help="hidden:batch pairs")
+    parser.add_argument("--only", nargs="+", default=None, help="a subset of: sac1 sac3 moiq3 iq3 peer1 peer3")
     parser.add_argument("--no-sampling", action="store_true", help="also time the update on a fixed batch")
     args = parser.parse_args()
     print(f"{os.cpu_count()} cores, jax {jax.__version__} {jax.default_backend()}; load average at start "
@@ -241,6 +242,8 @@ def main() -> None:
         rows = {}
         specs = [("sac", 1), ("sac", 3), ("moiq", 3), ("iq", 3)]
         for algorithm, experts in [*specs, ("peer", 1), ("peer", 3)]:
+            if args.only and f"{algorithm}{experts}" not in args.only:
+                continue
             figures = []
             for sample in (True, False) if args.no_sampling else (True,):
                 case = (peer(experts, hidden, batch, args.updates, sample) if algorithm == "peer"
@@ -254,6 +257,8 @@ def main() -> None:
             print(f"{case.name:<14}{1e3 * seconds:>10.2f}{case.flops / 1e6:>9.1f}{rate:>9.1f}{100 * rate / peak:>9.0f}%"
                   f"{peak:>12.0f}{extra}", flush=True)
         for experts in (1, 3):
+            if f"SAC x{experts}" not in rows or f"peer SAC x{experts}" not in rows:
+                continue
             print(f"SAC x{experts} vs peer: {rows[f'peer SAC x{experts}'] / rows[f'SAC x{experts}']:.2f}x the peer's "
                   f"speed")
     print(f"\nload average at end {' '.join(f'{x:.1f}' for x in os.getloadavg())}")

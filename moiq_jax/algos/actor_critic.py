@@ -24,12 +24,8 @@ def soft_value(nets: Networks, critic_params, actor_params, alpha, obs, preferen
     where ``k`` is the twin whose scalarised value ``w . Q_k`` is smaller (clipped double Q). ``(N, d)``."""
     action, log_prob = nets.sample(actor_params, obs, preference, key)
     q = nets.critic.apply(critic_params, obs, action, tile(preference, obs.shape[0]))  # (2, N, d)
-    return soft_value_of(q, log_prob, preference, alpha)
-
-
-def soft_value_of(q, log_prob, preference, alpha):
-    """``soft_value`` from the twins' values ``q`` ``(2, N, d)`` at the sampled actions and their log-probabilities."""
-    q_min = jnp.where((q[0] @ preference <= q[1] @ preference)[:, None], q[0], q[1])  # argmin's choice, first on ties
+    smaller = jnp.argmin(q @ preference, axis=0)  # (N,)
+    q_min = jnp.take_along_axis(q, smaller[None, :, None], axis=0)[0]
     return q_min - alpha * log_prob[:, None]
 
 

@@ -17,10 +17,10 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from moiq_jax.algos.actor_critic import soft_value, soft_value_of
+from moiq_jax.algos.actor_critic import soft_value
 from moiq_jax.algos.offpolicy import Algorithm, expert_and_policy_batch
 from moiq_jax.evaluate import pearson
-from moiq_jax.networks import Networks, Params, sample_action, tile
+from moiq_jax.networks import Networks, Params, tile
 
 
 def recovered_rewards(nets: Networks, critic_params, params: Params, alpha, batch, preference, key, gamma,
@@ -36,32 +36,6 @@ def recovered_rewards(nets: Networks, critic_params, params: Params, alpha, batc
     if use_target:
         discounted_next = jax.lax.stop_gradient(discounted_next)
     return q - discounted_next, discounted_next
-
-
-def _rewards_and_values(nets: Networks, critic_params, params: Params, alpha, rows, own, preference, value_key,
-                        next_key, gamma, use_target):
-    """``recovered_rewards`` on ``rows`` and the soft value ``V(s, w)`` (online critic, with gradient) of their
-    first ``own`` states, with one actor pass for a' at s' and at s and one online critic pass for Q(s, a) and
-    Q(s, a'') (and Q(s', a') without a target critic): fewer, larger matrix products, the same numbers."""
-    n = rows["obs"].shape[0]
-    w = tile(preference, n + own)
-    mean, log_std = nets.actor.apply(params.actor, jnp.concatenate([rows["next_obs"], rows["obs"][:own]]), w)
-    next_action, next_log_prob = sample_action(next_key, mean[:n], log_std[:n], nets.action_scale)
-    action, log_prob = sample_action(value_key, mean[n:], log_std[n:], nets.action_scale)
-    obs = [rows["obs"], rows["obs"][:own]]
-    actions = [rows["action"], action]
-    if not use_target:
-        obs, actions = [*obs, rows["next_obs"]], [*actions, next_action]
-    q = nets.critic.apply(critic_params, jnp.concatenate(obs), jnp.concatenate(actions), tile(preference, n + own
-                                                                                               + (0 if use_target else n)))
-    next_q = nets.critic.apply(params.target_critic, rows["next_obs"], next_action, w[:n]) if use_target \
-        else q[:, n + own:]
-    next_value = soft_value_of(next_q, next_log_prob, preference, alpha)
-    discounted_next = gamma * (1.0 - rows["done"])[:, None] * next_value
-    if use_target:
-        discounted_next = jax.lax.stop_gradient(discounted_next)
-    value = soft_value_of(q[:, n:n + own], log_prob, preference, alpha)
-    return q[:, :n] - discounted_next, discounted_next, value
 
 
 def iq_learn_loss(reward, value_difference, is_expert, alpha_reg):
@@ -112,8 +86,9 @@ def critic_terms(critic_params, nets: Networks, params: Params, batches, prefere
     def one_expert(own, preference, alpha, key):
         value_key, next_key = jax.random.split(key)
         rows = own if common is None else jax.tree_util.tree_map(lambda a, b: jnp.concatenate([a, b]), own, common)
-        rewards, discounted_next, value = _rewards_and_values(nets, critic_params, params, alpha, rows, per_expert,
-                                                              preference, value_key, next_key, gamma, use_target)
+        rewards, discounted_next = recovered_rewards(nets, critic_params, params, alpha, rows, preference,
+                                                     next_key, gamma, use_target)
+        value = soft_value(nets, critic_params, params.actor, alpha, own["obs"], preference, value_key)
         return rewards[:, :per_expert], value - discounted_next[:per_expert], rewards[:, per_expert:]
 
     own_rewards, value_differences, common_rewards = jax.vmap(one_expert)(
