@@ -79,8 +79,9 @@ def _parse_vector(text: str) -> tuple[float, ...]:
         raise argparse.ArgumentTypeError(f"expected comma-separated numbers like 0.9,0.1, got {text!r}") from None
 
 
-def add_config_flags(parser: argparse.ArgumentParser) -> None:
-    """A flag for every Config field (``--beta``, ``--total-steps``...), plus ``--config FILE``.
+def add_config_flags(parser: argparse.ArgumentParser, repeated: tuple[str, ...] = ()) -> None:
+    """A flag for every Config field (``--beta``, ``--total-steps``...), plus ``--config FILE``; the
+    ``repeated`` ones may be given several times (a list).
 
     Flags default to None so that only the ones given override the file's or Config's values."""
     parser.add_argument("--config", metavar="FILE", help="a JSON or YAML file of Config fields; flags override it")
@@ -91,6 +92,8 @@ def add_config_flags(parser: argparse.ArgumentParser) -> None:
         if name == "preferences":
             parser.add_argument(flag, nargs="+", type=_parse_vector, metavar="W1,W2", default=None,
                                 help=text + "; one comma-separated vector per expert")
+        elif name in repeated:
+            parser.add_argument(flag, action="append", default=None, help=text + "; repeat it, one per preference set")
         elif isinstance(default, bool):
             parser.add_argument(flag, action=argparse.BooleanOptionalAction, default=None, help=text)
         elif isinstance(default, tuple):
@@ -177,25 +180,28 @@ def _print_returns_against_experts(config: Config, result) -> None:
         print(f"  {_format_preference(w):<12} " + " ".join(f"{c:<26}" for c in cells))
 
 
-def _run_sweep(config: Config, values: dict, out_dir: str) -> None:
-    """Train every combination of ``values`` (swept name -> list) as one vmapped program, one CPU device
-    per run (``runtime.split_cpu_into_devices``); write each run's config.json and metrics.csv to
-    ``out_dir/<name><value>-...`` (e.g. ``beta0.5-seed0``, so `moiq plot` reads them) and print final
-    and best returns per run."""
+def _run_sweep(config: Config, values: dict, out_dir: str, demos=None) -> None:
+    """Train every combination of ``values`` (swept name -> list; ``preferences``: a list of preference
+    sets) as one vmapped program, one CPU device per run (``runtime.split_cpu_into_devices``); write each
+    run's config.json and metrics.csv to ``out_dir/<name><value>-...`` (e.g. ``beta0.5-set1-seed0``, so
+    `moiq plot` reads them) and print final and best returns per run, one table per preference set."""
     import moiq_jax
     from moiq_jax.runlog import RunLog
     from moiq_jax.runtime import split_cpu_into_devices
 
     split_cpu_into_devices(int(np.prod([len(v) for v in values.values()])))
 
-    result = moiq_jax.sweep(config, **values)
+    result = moiq_jax.sweep(config, demos=demos, **values)
     history = result.history
     steps = np.asarray(history["env_steps"])  # [runs, evals(, experts)]
-    print(f"{len(result.runs['seed'])} runs; scalarised returns per preference "
-          f"{[_format_preference(w) for w in result.preferences]}")
+    sets = result.runs.get("set", np.zeros(len(result.runs["seed"]), int))
+    print(f"{len(result.runs['seed'])} runs; scalarised returns per preference")
     for run in range(len(result.runs["seed"])):
         run_result = result.run(run)
-        swept = {name: v[run].item() for name, v in result.runs.items()}
+        if run == 0 or sets[run] != sets[run - 1]:
+            set_name = f"set {sets[run]} " if "set" in result.runs else ""
+            print(f"{set_name}{[_format_preference(w) for w in run_result.preferences]}")
+        swept = {name: v[run].item() for name, v in result.runs.items() if name != "preferences"}
         run_dir = os.path.join(out_dir, "-".join(f"{name}{value:g}" for name, value in swept.items()))
         log = RunLog(run_dir, run_result.config, total_steps=int(steps[run].max()), progress=False)
         for t in range(steps.shape[1]):
@@ -203,7 +209,7 @@ def _run_sweep(config: Config, values: dict, out_dir: str) -> None:
         log.close()
         scalar = np.asarray(run_result.history["eval_scalar_return"])
         best = scalar[int(np.argmax(scalar.mean(axis=1)))]
-        shown = " ".join(f"{name} {value:<5g}" if name != "seed" else f"seed {int(value):<3d}"
+        shown = " ".join(f"{name} {value:<5g}" if name not in ("seed", "set") else f"{name} {int(value):<3d}"
                          for name, value in swept.items())
         print(f"  {shown} final {_format_vector(scalar[-1])}  best {_format_vector(best)}  -> {run_dir}")
 
@@ -212,6 +218,17 @@ def _cmd_sweep(args) -> int:
     from moiq_jax.algos.offpolicy import Algorithm
     from moiq_jax.train import algorithm_of, swept_names, validate
 
+    demos, args.demos = args.demos, None
+    if demos and not args.preference_sets and len(demos) > 1:
+        raise ValueError(f"--demos given {len(demos)} times: give one per --preference-sets entry")
+    if demos and not args.preference_sets:
+        args.demos = demos[0]
+    sets = None
+    if args.preference_sets:
+        if args.preferences:
+            raise ValueError("give the experts' preferences either by --preferences or by --preference-sets")
+        sets = [[_parse_vector(w) for w in text.replace(";", " ").split()] for text in args.preference_sets]
+        args.preferences = sets[0]  # the config's labels: the first set's (validated with the env)
     config = validate(config_from_args(args))
     off_policy = isinstance(algorithm_of(config), Algorithm)
     if not off_policy:
@@ -225,7 +242,12 @@ def _cmd_sweep(args) -> int:
         if "beta" not in swept_names(config):
             raise ValueError(f"--betas: {config.algo} has no consensus penalty weight to sweep")
         values = {"beta": args.betas, **values}
-    _run_sweep(config, values, out_dir)
+    if sets is not None:
+        values["preferences"] = sets
+        demos = demos or None
+    else:
+        demos = None  # the config's demos file (--demos), as in `moiq train`
+    _run_sweep(config, values, out_dir, demos)
     return 0
 
 
@@ -339,7 +361,13 @@ def _cmd_plot(args) -> int:
         if found is not None:
             front = base.pareto_front() if hasattr(base, "pareto_front") else None
             name = os.path.basename(os.path.normpath(run_dir))
-            print(plots.transfer(found[1], found[0], os.path.join(out_dir, f"transfer_{name}.png"), front, title=name))
+            start = found.get("swept_from", 0)  # the experts' own preferences are not part of the sweep
+            title = name if "hypervolume" not in found else f"{name}: hypervolume {found['hypervolume']:.1f}"
+            if found.get("mean_regret") is not None:
+                title += f", mean regret {found['mean_regret']:.2f}"
+            print(plots.transfer(found["returns"][start:], found["preferences"][start:],
+                                 os.path.join(out_dir, f"transfer_{name}.png"), front, title=title,
+                                 traced=found.get("front")))
     return 0
 
 
@@ -349,6 +377,7 @@ def _cmd_eval(args) -> int:
     import moiq_jax
     from moiq_jax.algos.offpolicy import Algorithm, make_trainer
     from moiq_jax.checkpoint import Checkpoints
+    from moiq_jax.evaluate import transfer_scores
     from moiq_jax.preferences import preference_sweep
     from moiq_jax.train import algorithm_of
 
@@ -363,26 +392,62 @@ def _cmd_eval(args) -> int:
     finally:
         checkpoints.close()
     experts = np.asarray(config.preferences, np.float32)
-    preferences = np.concatenate([experts, preference_sweep()]) if experts.shape[1] == 2 else experts
     env = config.make_env(absorbing=True)  # as in training, on the run's backend
-    returns = moiq_jax.evaluate(params, env, preferences, episodes=args.episodes)
+    if args.preferences is None:  # the experts' preferences, then the paper's 19
+        preferences = np.concatenate([experts, preference_sweep()]) if experts.shape[1] == 2 else experts
+        num_experts = len(experts)
+    else:
+        preferences, num_experts = _eval_preferences(args.preferences, env.reward_dim), 0
+    returns = moiq_jax.evaluate(params, env, preferences, episodes=args.episodes)  # one vmapped call
     base = env.unwrapped
     front = base.pareto_front() if hasattr(base, "pareto_front") else None
-    optimal = [None if front is None else bool(np.dot(w, r) >= np.max(front @ w) - 1e-3)
-               for w, r in zip(preferences, returns)]
+    swept = slice(num_experts, None)
+    scores = transfer_scores(returns[swept], preferences[swept], front) if env.reward_dim == 2 else {}
+    regret = [None] * num_experts + (scores["regret"].tolist() if "regret" in scores else
+                                     [None] * (len(returns) - num_experts))
+    optimal = [None] * len(preferences)
+    if front is not None:
+        optimal = [bool(np.dot(w, r) >= np.max(front @ w) - 1e-3) for w, r in zip(preferences, returns)]
     print(f"best parameters of {args.run_dir} (mean scalarised return {np.mean(meta['best_return']):.2f}); "
           f"vector return per preference over {args.episodes} episode(s):")
     for i, (w, r, ok) in enumerate(zip(preferences, returns, optimal)):
-        kind = "expert " if i < len(experts) else "sweep  "
-        tag = "" if ok is None else ("  Pareto-optimal" if ok else "  not optimal")
+        kind = "expert " if i < num_experts else "sweep  "
+        tag = "" if ok is None else ("  Pareto-optimal" if ok else f"  not optimal, regret {regret[i]:.3f}"
+                                     if regret[i] is not None else "  not optimal")
         print(f"  {kind}{_format_preference(w):<14} {_format_vector(r)} {float(np.dot(w, r)):8.2f}{tag}")
-    if front is not None:
-        sweep = optimal[len(experts):]
-        print(f"transfer: {sum(sweep)} of {len(sweep)} swept preferences reach their Pareto-optimal return")
+    record = {"preferences": preferences.tolist(), "returns": np.asarray(returns).tolist(),
+              "pareto_optimal": optimal, "regret": regret, "swept_from": num_experts}
+    if scores:
+        record.update(front=scores["front"].tolist(), hypervolume=scores["hypervolume"],
+                      reference=scores["reference"].tolist())
+        if front is not None:
+            record.update(front_hypervolume=scores["front_hypervolume"], mean_regret=float(scores["regret"].mean()),
+                          optimal=int(scores["optimal"].sum()))
+            print(f"transfer: {int(scores['optimal'].sum())} of {len(scores['regret'])} swept preferences reach their "
+                  f"Pareto-optimal return; mean regret {float(scores['regret'].mean()):.3f}")
+        true_front = "" if front is None else f" (the true front's: {scores['front_hypervolume']:.2f})"
+        print(f"front: the swept preferences' returns trace {len(scores['front'])} non-dominated point(s), "
+              f"hypervolume {scores['hypervolume']:.2f} above {np.round(scores['reference'], 3).tolist()}{true_front}")
     with open(os.path.join(args.run_dir, "transfer.json"), "w") as f:
-        json.dump({"preferences": preferences.tolist(), "returns": np.asarray(returns).tolist(),
-                   "pareto_optimal": optimal}, f, indent=1)
+        json.dump(record, f, indent=1)
     return 0
+
+
+def _eval_preferences(given: list[str], reward_dim: int) -> np.ndarray:
+    """``--preferences N`` (the paper's sweep ``[1 - k / (N + 1), k / (N + 1)]``, two objectives) or a list of
+    comma-separated vectors."""
+    from moiq_jax.preferences import check_preferences, preference_sweep
+
+    if len(given) == 1 and "," not in given[0]:
+        try:
+            count = int(given[0])
+        except ValueError:
+            raise ValueError(f"--preferences: a count like 19 or vectors like 0.9,0.1, got {given[0]!r}") from None
+        if count < 1 or reward_dim != 2:
+            raise ValueError(f"--preferences {count}: a count of swept preferences (>= 1) needs two objectives; "
+                             f"this env has {reward_dim}; give the vectors instead")
+        return preference_sweep(count)
+    return check_preferences([_parse_vector(w) for w in given], reward_dim, what="--preferences")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -411,21 +476,29 @@ def build_parser() -> argparse.ArgumentParser:
                    help="train seeds seed..seed+N-1 as one vmapped program, one sub-directory each (no checkpoints)")
     p.set_defaults(func=_cmd_train)
 
-    p = sub.add_parser("sweep", help="train every (beta, seed) combination as one vmapped program",
-                       description="Train the product of --betas and --seeds in one compiled program (moiq, "
-                                   "iq_learn); each run's config and metrics go to OUT/beta<b>-seed<s>.")
-    add_config_flags(p)
+    p = sub.add_parser("sweep", help="train every (beta, preference set, seed) combination as one vmapped program",
+                       description="Train the product of --betas, --preference-sets and --seeds in one compiled "
+                                   "program (moiq, iq_learn); each run's config and metrics go to "
+                                   "OUT/beta<b>-set<i>-seed<s> (set only with --preference-sets).")
+    add_config_flags(p, repeated=("demos",))
     p.add_argument("--betas", nargs="+", type=float, help="consensus penalty weights (default: --beta)")
+    p.add_argument("--preference-sets", nargs="+", metavar='"W1,W2 W1,W2 ..."',
+                   help="expert preference sets, each one quoted argument of space-separated vectors, all of "
+                        "one size; demos: the env's oracle experts, or --demos FILE once per set, in order")
     p.add_argument("--seeds", type=int, default=1, help="number of seeds, from --seed on; default: 1")
     p.add_argument("--out", help="sweep directory (default: runs/sweep-<env>-<algo>-<time>)")
     p.set_defaults(func=_cmd_sweep)
 
     p = sub.add_parser("eval", help="evaluate a run's best parameters per preference (transfer)",
                        description="Vector returns of a moiq run's best parameters at the experts' preferences and "
-                                   "the paper's 19 transfer preferences, against the true Pareto front; writes "
-                                   "RUN_DIR/transfer.json (drawn by `moiq plot`).")
+                                   "the paper's 19 transfer preferences (or --preferences), in one vmapped call, against the "
+                                   "true Pareto front; writes RUN_DIR/transfer.json (drawn by `moiq plot`).")
     p.add_argument("run_dir", metavar="RUN_DIR", help="a run directory of `moiq train`")
     p.add_argument("--episodes", type=int, default=1, help="episodes per preference; default: 1 (cdst is deterministic)")
+    p.add_argument("--preferences", nargs="+", metavar="N|W1,W2",
+                   help="evaluate at these preferences instead: a count N (the sweep [1 - k/(N+1), k/(N+1)], "
+                        "k = 1..N; 19 is the paper's) or comma-separated vectors; writes the returns, the front "
+                        "they trace, its hypervolume and, where the env knows its front, the regret per preference")
     p.set_defaults(func=_cmd_eval)
 
     p = sub.add_parser("demos", help="record expert demonstrations to a file, or describe one",

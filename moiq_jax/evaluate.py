@@ -111,3 +111,30 @@ def evaluate(params, env: Env | str, preferences, episodes: int = 1, seed: int =
     prefs = jnp.asarray(preferences, jnp.float32)
     run = jax.jit(lambda actor, key: preference_returns(nets, actor, env, prefs, key, episodes))
     return np.asarray(run(params.actor, jax.random.PRNGKey(seed)).mean(axis=1))
+
+
+def nondominated(points) -> np.ndarray:
+    """The points ``[n, d]`` (all objectives maximised) that no other point dominates, without duplicates:
+    the front a set of returns traces."""
+    points = np.unique(np.asarray(points, np.float64), axis=0)
+    dominated = [np.any(np.all(points >= p, axis=1) & np.any(points > p, axis=1)) for p in points]
+    return points[~np.asarray(dominated, bool)]
+
+
+def transfer_scores(returns, preferences, front=None, reference=None) -> dict:
+    """How well vector ``returns`` ``[P, 2]`` reached at ``preferences`` transfer: the front they trace, its
+    ``hypervolume`` above ``reference`` (default: the true front's worst value per objective minus 1, so
+    every front point counts; else the returns' own), and where the true ``front`` is known, per
+    preference the ``regret`` ``w . (optimum - return)`` and whether the return is ``optimal`` (regret <= 1e-3)."""
+    returns, preferences = np.asarray(returns, np.float64), np.asarray(preferences, np.float64)
+    if reference is None:
+        reference = (returns if front is None else np.asarray(front)).min(axis=0) - 1.0
+    out = {"front": nondominated(returns), "reference": np.asarray(reference, np.float64)}
+    out["hypervolume"] = hypervolume(returns, out["reference"])
+    if front is not None:
+        front = np.asarray(front, np.float64)
+        optimum = front[np.argmax(preferences @ front.T, axis=1)]
+        regret = np.sum(preferences * (optimum - returns), axis=1)
+        out.update(optimum=optimum, regret=regret, optimal=regret <= 1e-3,
+                   front_hypervolume=hypervolume(front, out["reference"]))
+    return out

@@ -81,13 +81,16 @@ def learning_curves(run_dirs: list[str], out: str, metric: str = "eval_scalar_re
 
 
 def transfer(returns: np.ndarray, preferences: np.ndarray, out: str, front: np.ndarray | None = None,
-             title: str = "") -> str:
+             title: str = "", traced: np.ndarray | None = None) -> str:
     """Vector returns ``[P, 2]`` reached for each of ``preferences`` (coloured by the first weight), beside
-    the true Pareto front when given. Returns the PNG path."""
+    the true Pareto front and the front the returns trace (``traced``), when given. Returns the PNG path."""
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(5.5, 4.2))
     if front is not None:
         ax.plot(front[:, 1], front[:, 0], "k--", marker="s", ms=5, mfc="none", label="true Pareto front")
+    if traced is not None and len(traced):
+        traced = traced[np.argsort(traced[:, 1])]
+        ax.step(traced[:, 1], traced[:, 0], "C3-", where="post", alpha=0.6, label="front the policy traces")
     points = ax.scatter(returns[:, 1], returns[:, 0], c=preferences[:, 0], cmap="viridis", zorder=3,
                         label="policy, per preference")
     fig.colorbar(points, ax=ax, label="weight of objective 1")
@@ -101,11 +104,12 @@ def transfer(returns: np.ndarray, preferences: np.ndarray, out: str, front: np.n
     return out
 
 
-def read_transfer(run_dir: str) -> tuple[np.ndarray, np.ndarray] | None:
-    """``(preferences[P, d], vector returns[P, d])`` from a run's transfer.json (written by `moiq eval`)."""
+def read_transfer(run_dir: str) -> dict | None:
+    """A run's transfer.json (written by `moiq eval`) as arrays: ``preferences`` and ``returns`` ``[P, d]``,
+    and, when written, ``front`` (the traced one), ``hypervolume``, ``regret``, ``mean_regret``..."""
     path = os.path.join(run_dir, "transfer.json")
     if not os.path.exists(path):
         return None
     with open(path) as f:
         data = json.load(f)
-    return np.asarray(data["preferences"]), np.asarray(data["returns"])
+    return {k: np.asarray(v) if k in ("preferences", "returns", "front") else v for k, v in data.items()}

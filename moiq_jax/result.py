@@ -19,7 +19,8 @@ class Result:
     None); best_return; seconds of wall-clock time.
 
     A sweep's result has a leading run axis on history, params and best_return, and ``runs``: each swept
-    name (``seed``, ``beta``...) -> its value per run. ``extras``: what only one algorithm has, as it gives them
+    name (``seed``, ``beta``...) -> its value per run; a sweep over preference sets adds ``set`` (its index)
+    and ``preferences`` ``[runs, E, d]`` (the run's labels, as ``preferences`` then is). ``extras``: what only one algorithm has, as it gives them
     (ADMM: ``optimal_return [E]`` and ``transfer``, the 19 sweep preferences' results with a seed axis)."""
 
     config: Config
@@ -39,7 +40,12 @@ class Result:
         if self.runs is None:
             raise ValueError("run(index) takes one run of a sweep; this result is a single run")
         pick = lambda tree: None if tree is None else jax.tree_util.tree_map(lambda x: x[index], tree)
-        values = {name: v[index].item() for name, v in self.runs.items()}
-        return dataclasses.replace(self, config=self.config.replace(**values), history=pick(self.history),
+        values = {name: v[index].item() for name, v in self.runs.items() if name not in ("set", "preferences")}
+        preferences = np.asarray(self.preferences)
+        if "preferences" in self.runs:
+            preferences = np.asarray(self.runs["preferences"][index])
+            values["preferences"] = tuple(tuple(float(x) for x in w) for w in preferences.tolist())
+        return dataclasses.replace(self, config=self.config.replace(**values), preferences=preferences,
+                                   history=pick(self.history),
                                    final_params=pick(self.final_params), best_params=pick(self.best_params),
                                    best_return=np.asarray(self.best_return)[index], runs=None)

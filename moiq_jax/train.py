@@ -17,6 +17,8 @@ from moiq_jax.algos import gail, iq_learn, moiq, preference_inference, sac
 from moiq_jax.algos.offpolicy import Algorithm, make_trainer
 from moiq_jax.config import Config
 from moiq_jax.experts.demonstrations import Demonstrations
+from moiq_jax.experts.loading import load_demonstrations, match_preferences, take_experts
+from moiq_jax.preferences import check_preferences
 from moiq_jax.result import Result
 from moiq_jax.runner import run_chunks
 from moiq_jax.runtime import shard_runs
@@ -82,28 +84,97 @@ def run_grid(values: dict) -> dict[str, np.ndarray]:
     return {name: np.asarray([run[i] for run in grid]) for i, name in enumerate(names)}
 
 
-def sweep(config: Config, demos: Demonstrations | None = None, **values) -> Result:
+def preference_sets(sets, reward_dim: int, demos=None) -> tuple[list[np.ndarray], list]:
+    """``sets`` (each a list of preferences) checked to have one size, and ``demos`` matched to them: None
+    (each set's oracle demonstrations), or one ``Demonstrations`` or file path per set."""
+    checked = [check_preferences(s, reward_dim, what=f"preference set {i}") for i, s in enumerate(sets)]
+    if not checked:
+        raise ValueError("preferences=[...]: give at least one preference set")
+    sizes = [len(s) for s in checked]
+    if len(set(sizes)) != 1:
+        raise ValueError(f"every preference set of one sweep needs the same number of experts (they train as one "
+                         f"program), got sizes {sizes}; sweep sets of each size separately")
+    if demos is None or isinstance(demos, (Demonstrations, str)):
+        if demos is not None and len(checked) > 1:
+            raise ValueError(f"{len(checked)} preference sets need one demonstrations file each, got one")
+        demos = [demos] * len(checked)
+    if len(demos) != len(checked):
+        raise ValueError(f"{len(checked)} preference sets need one demonstrations file each, got {len(demos)}")
+    return checked, list(demos)
+
+
+def sweep(config: Config, demos=None, **values) -> Result:
     """Train every combination of the given values (``seed=[...]``, and the algorithm's hyperparameters,
     e.g. ``beta=[...]`` for moiq; the config's value for those not given) as one vmapped, compiled program,
     sharded over the run axis when several devices are present and they divide the number of runs (on
-    CPU, ``runtime.split_cpu_into_devices`` makes the devices). Returns a ``Result`` with a run axis."""
+    CPU, ``runtime.split_cpu_into_devices`` makes the devices). Returns a ``Result`` with a run axis.
+
+    ``preferences=[set_1, set_2, ...]`` also sweeps preference sets of one size (each set's demonstrations
+    and preferences are inputs of the program, not constants); ``demos`` is then one ``Demonstrations`` or
+    file path per set (None: the env's oracle experts), and ``runs`` holds each run's ``set`` index and its
+    ``preferences``, in the order given, as ``Result.preferences`` ``[runs, E, d]`` does."""
     algorithm = algorithm_of(config)
     validate(config)
     known = swept_names(config)
+    sets = values.pop("preferences", None)
     unknown = sorted(set(values) - set(known))
     if unknown:
-        raise ValueError(f"a sweep of {config.algo} varies {', '.join(known)}; got {unknown}")
+        raise ValueError(f"a sweep of {config.algo} varies {', '.join(known)}; got {unknown} "
+                         "(and preference sets, as preferences=[set, ...])")
     if not isinstance(algorithm, Algorithm):
+        if sets is not None:
+            raise ValueError(f"a sweep of {config.algo} varies seed only; train each preference set separately")
         return algorithm.train_seeds(config, [config.seed] if values.get("seed") is None else values["seed"])
     start = time.perf_counter()
-    trainer = make_trainer(config, algorithm, demos)
+    swept_sets = sets is not None
+    if sets is None:
+        trainer = make_trainer(config, algorithm, demos)
+        setups, sets = [trainer.setup], [trainer.preferences]
+        given = sets
+    else:
+        raw = sets
+        sets, set_demos = preference_sets(sets, config.make_env().reward_dim, demos)
+        given = [np.asarray(s, np.float64) for s in raw]  # the labels as given, not rounded to float32
+        as_config = lambda s: tuple(map(tuple, s.tolist()))
+        trainer = make_trainer(config.replace(preferences=as_config(sets[0])), algorithm,
+                               set_demos_of(config, sets[0], set_demos[0], 0))
+        setups = [trainer.setup] + [trainer.make_setup(s, set_demos_of(config, s, d, i + 1))
+                                    for i, (s, d) in enumerate(zip(sets[1:], set_demos[1:]))]
     defaults = {**trainer.hyper, "seed": config.seed}
-    runs = run_grid({name: [defaults[name]] if values.get(name) is None else values[name] for name in known})
+    grid = {name: [defaults[name]] if values.get(name) is None else values[name] for name in known}
+    runs = run_grid({**{k: v for k, v in grid.items() if k != "seed"}, "set": range(len(sets)), "seed": grid["seed"]})
     keys = jax.vmap(jax.random.PRNGKey)(jnp.asarray(runs["seed"], jnp.uint32))
     hyper = {name: jnp.asarray(runs[name], jnp.float32) for name in trainer.hyper}
-    keys, hyper = shard_runs(keys, hyper)
-    state, history = jax.jit(jax.vmap(trainer.train))(keys, hyper)
+    setup = jax.tree_util.tree_map(lambda *x: jnp.stack(x)[runs["set"]], *setups)
+    keys, hyper, setup = shard_runs(keys, hyper, setup)
+
+    def one(key, hyper, setup):
+        state, history = trainer.train_with(key, hyper, setup)
+        return (trainer.to_config_order(state.learner.params, 0, setup["back"]),
+                trainer.to_config_order(state.best_params, 0, setup["back"]), state.best_return, history)
+
+    final, best, best_return, history = jax.jit(jax.vmap(one))(keys, hyper, setup)
     runs = {name: np.asarray(v, np.float32) if name in hyper else v for name, v in runs.items()}
-    return Result(config, trainer.preferences, jax.device_get(history),
-                  trainer.to_config_order(state.learner.params, axis=1), trainer.to_config_order(state.best_params, axis=1),
-                  np.asarray(state.best_return), time.perf_counter() - start, runs=runs)
+    preferences = np.stack(given)[runs["set"]]
+    if swept_sets:
+        runs["preferences"] = preferences
+    else:
+        runs.pop("set")
+        preferences = trainer.preferences
+    return Result(config, preferences, jax.device_get(history), final, best, np.asarray(best_return),
+                  time.perf_counter() - start, runs=runs)
+
+
+def set_demos_of(config: Config, preferences, demos, index: int) -> Demonstrations | None:
+    """Preference set ``index``'s demonstrations in its order: ``demos`` (matched to the set by their
+    preferences), or loaded from a file path (matched too), or None (the oracle experts, loaded by the trainer)."""
+    if demos is None:
+        return None
+    try:
+        if isinstance(demos, str):
+            return load_demonstrations(config.replace(preferences=tuple(map(tuple, preferences.tolist())), demos=demos))
+        if getattr(demos, "preferences", None) is None:
+            raise ValueError("the demos given carry no preferences to match to the set")
+        return take_experts(demos, match_preferences(demos.preferences, preferences, "the demos given"))
+    except ValueError as err:
+        raise ValueError(f"preference set {index}: {err}") from None

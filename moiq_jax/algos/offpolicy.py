@@ -10,7 +10,9 @@ and its reward metrics. ``hyper`` is the pytree of the values a sweep may vary (
 it reaches the algorithm's critic loss and nothing else.
 
 Inside, experts are held in the canonical ``preference_order``; everything a chunk reports is put back
-in the config's order, so every value keeps the label it was given.
+in the config's order, so every value keeps the label it was given. What depends on the preference set
+(demonstrations, preferences, the permutation ``back`` to the given order) is a ``setup`` pytree, an
+input of ``train_with``, so a sweep can vmap over preference sets as it does over seeds.
 """
 
 from __future__ import annotations
@@ -108,8 +110,10 @@ class Trainer(NamedTuple):
     """Pure pieces of one configured training: ``init(key)``, ``run_chunk(state, hyper)`` (eval_interval
     env steps then an evaluation; metrics in the config's expert order), ``train(key, hyper)`` (all
     chunks); ``num_chunks``; ``hyper``: the config's swept values; ``preferences``: the labels, in the
-    config's order; ``to_config_order(params, axis)``: parameters with per-expert entries (leading
-    expert axis at ``axis``) put in the config's order."""
+    config's order; ``to_config_order(params, axis, back=None)``: parameters with per-expert entries
+    (leading expert axis at ``axis``) put in the config's order (or a setup's, by its ``back``).
+    ``train_with(key, hyper, setup)``: ``train`` for another preference set's ``setup(preferences, demos)``;
+    ``setup``: the config's."""
 
     init: Any
     run_chunk: Any
@@ -118,6 +122,9 @@ class Trainer(NamedTuple):
     hyper: dict
     preferences: np.ndarray
     to_config_order: Any
+    train_with: Any = None
+    setup: Any = None
+    make_setup: Any = None
 
 
 def expert_transitions(demos: Demonstrations) -> dict:
@@ -140,14 +147,21 @@ def make_trainer(config: Config, algorithm: Algorithm, demos: Demonstrations | N
     c = config.offpolicy
     env = config.make_env(absorbing=algorithm.learns_from_demos)
     labels = check_preferences(config.preferences, env.reward_dim)
-    order = preference_order(labels)  # canonical expert order inside the loop
-    back = np.argsort(order)  # from the canonical order to the config's
-    data = None
-    if algorithm.learns_from_demos:
-        demos = load_demonstrations(config, env) if demos is None else demos
-        data = {k: jnp.asarray(v[order]) for k, v in expert_transitions(demos).items()}
-    preferences = jnp.asarray(labels[order])
-    num_experts = preferences.shape[0]
+
+    def make_setup(preferences, set_demos: Demonstrations | None = None) -> dict:
+        """The traced inputs of one preference set: its demos' transitions and its preferences in the
+        canonical order, and ``back`` (canonical -> given order); demos in the given order, loaded when None."""
+        given = check_preferences(preferences, env.reward_dim)
+        order = preference_order(given)  # canonical expert order inside the loop
+        data = None
+        if algorithm.learns_from_demos:
+            if set_demos is None:
+                set_demos = load_demonstrations(config.replace(preferences=tuple(map(tuple, given.tolist()))), env)
+            data = {k: jnp.asarray(v[order]) for k, v in expert_transitions(set_demos).items()}
+        return {"data": data, "preferences": jnp.asarray(given[order]), "back": jnp.asarray(np.argsort(order))}
+
+    default_setup = make_setup(labels, demos)
+    num_experts = labels.shape[0]
     rollout_env = VmapWrapper(AutoReset(env), c.num_envs)
     nets = networks_of_sizes(c.hidden_sizes, env.reward_dim, env.action_size, c.action_scale)
     optimisers = actor_critic.Optimisers(optax.adam(c.critic_lr), optax.adam(c.actor_lr), optax.adam(c.alpha_lr))
@@ -231,38 +245,41 @@ def make_trainer(config: Config, algorithm: Algorithm, demos: Demonstrations | N
             metrics.update(reward_metrics(params, state.extra, expert_data, prefs, keys[0]))
         return state, metrics
 
-    def in_config_order(metrics):
-        """Per-expert metrics (leading axis E) from the canonical order to the config's."""
+    def in_config_order(metrics, back):
+        """Per-expert metrics (leading axis E) from the canonical order to the given one."""
         return {k: v[back] if v.ndim >= 1 and v.shape[0] == num_experts else v for k, v in metrics.items()}
 
     if algorithm.one_model_per_expert:  # n single-expert models, vmapped
-        per_model = None if data is None else jax.tree_util.tree_map(lambda x: x[:, None], data)
-        model_prefs = preferences[:, None]
+        def init_all(key, setup=default_setup):
+            return jax.vmap(init)(jax.random.split(key, num_experts), setup["preferences"][:, None])
 
-        def init_all(key):
-            return jax.vmap(init)(jax.random.split(key, num_experts), model_prefs)
-
-        def chunk_all(state, hyper):
-            state, metrics = jax.vmap(run_chunk, in_axes=(0, None, 0, 0))(state, hyper, per_model, model_prefs)
+        def chunk_all(state, hyper, setup=default_setup):
+            per_model = jax.tree_util.tree_map(lambda x: x[:, None], setup["data"])
+            state, metrics = jax.vmap(run_chunk, in_axes=(0, None, 0, 0))(state, hyper, per_model,
+                                                                          setup["preferences"][:, None])
             merged = {k: (v[:, 0] if v.ndim >= 2 and v.shape[1] == 1 else v) for k, v in metrics.items()}
-            return state, in_config_order(merged)
+            return state, in_config_order(merged, setup["back"])
 
-        def to_config_order(params, axis=0):
+        def to_config_order(params, axis=0, back=None):
+            back = default_setup["back"] if back is None else back
             return jax.tree_util.tree_map(lambda x: jnp.take(x, back, axis=axis), params)
     else:
-        def init_all(key):
-            return init(key, preferences)
+        def init_all(key, setup=default_setup):
+            return init(key, setup["preferences"])
 
-        def chunk_all(state, hyper):
-            state, metrics = run_chunk(state, hyper, data, preferences)
-            return state, in_config_order(metrics)
+        def chunk_all(state, hyper, setup=default_setup):
+            state, metrics = run_chunk(state, hyper, setup["data"], setup["preferences"])
+            return state, in_config_order(metrics, setup["back"])
 
-        def to_config_order(params, axis=0):
+        def to_config_order(params, axis=0, back=None):
+            back = default_setup["back"] if back is None else back
             return params.replace(log_alpha=jnp.take(params.log_alpha, back, axis=axis))
 
-    def train(key, hyper):
-        state = init_all(key)
-        return jax.lax.scan(lambda s, _: chunk_all(s, hyper), state, None, length=c.total_steps // c.eval_interval)
+    def train_with(key, hyper, setup):
+        state = init_all(key, setup)
+        return jax.lax.scan(lambda s, _: chunk_all(s, hyper, setup), state, None, length=c.total_steps // c.eval_interval)
 
     hyper = {name: float(value) for name, value in algorithm.hyper(config).items()}
-    return Trainer(init_all, chunk_all, train, c.total_steps // c.eval_interval, hyper, labels, to_config_order)
+    return Trainer(init_all, chunk_all, lambda key, hyper: train_with(key, hyper, default_setup),
+                   c.total_steps // c.eval_interval, hyper, labels, to_config_order, train_with, default_setup,
+                   make_setup)
