@@ -100,6 +100,23 @@ def evaluate_policies(policies, preferences, mdp: tabular.TabularMDP):
     return returns, (returns * preferences).sum(-1), lengths
 
 
+def reward_step(consensus: ConsensusState, agents, agent: InnerRL, preferences, expert_occupancy,
+                mdp: tabular.TabularMDP, config: Config) -> ConsensusState:
+    """A round's reward half: the ADMM iterations against the occupancies of the agents' current policies."""
+    policies = jax.vmap(agent.policy)(agents)
+    policy_occupancy = jax.vmap(lambda p: tabular.occupancy(p, mdp, config.gamma))(policies)
+    gains = reward_gains(preferences, expert_occupancy, policy_occupancy)
+    return consensus_admm(consensus, gains, penalty_metric(expert_occupancy, policy_occupancy, config), config)
+
+
+def policy_step(agents, agent: InnerRL, common: jax.Array, preferences, mdp: tabular.TabularMDP, key):
+    """A round's policy half: every expert's inner RL on ``common . w_i``. Returns the agents, the scalar
+    rewards ``[E, S + 1, A]`` and ``evaluate_policies`` of the improved agents."""
+    scalar = jnp.einsum("sad,ed->esa", common, preferences)
+    agents = jax.vmap(agent.improve)(agents, scalar, jax.random.split(key, preferences.shape[0]))
+    return agents, scalar, evaluate_policies(jax.vmap(agent.policy)(agents), preferences, mdp)
+
+
 def make_train(config: Config, mdp: tabular.TabularMDP, preferences: jax.Array):
     """A pure ``train(key, expert_occupancy[E, S + 1, A]) -> (final common reward, per-round metrics)``
     that ``jax.vmap`` can batch over seeds."""
@@ -116,14 +133,9 @@ def make_train(config: Config, mdp: tabular.TabularMDP, preferences: jax.Array):
 
         def round_(carry, key):
             consensus, agents = carry
-            policies = jax.vmap(agent.policy)(agents)
-            policy_occupancy = jax.vmap(lambda p: tabular.occupancy(p, mdp, config.gamma))(policies)
-            gains = reward_gains(preferences, expert_occupancy, policy_occupancy)
-            metric = penalty_metric(expert_occupancy, policy_occupancy, config)
-            consensus = consensus_admm(consensus, gains, metric, config)
-            scalar = jnp.einsum("sad,ed->esa", consensus.common, preferences)
-            agents = jax.vmap(agent.improve)(agents, scalar, jax.random.split(key, E))
-            returns, scalarised, lengths = evaluate_policies(jax.vmap(agent.policy)(agents), preferences, mdp)
+            consensus = reward_step(consensus, agents, agent, preferences, expert_occupancy, mdp, config)
+            agents, scalar, (returns, scalarised, lengths) = policy_step(agents, agent, consensus.common, preferences,
+                                                                         mdp, key)
             metrics = {
                 "return": scalarised,
                 "vector_return": returns,

@@ -147,20 +147,14 @@ def make_infer(config: Config, mdp: tabular.TabularMDP, candidates: jax.Array, i
         def round_(carry, inputs):
             consensus, agents, preferences, q_candidates = carry
             key, index = inputs
-            policies = jax.vmap(agent.policy)(agents)
-            policy_occupancy = jax.vmap(lambda p: tabular.occupancy(p, mdp, config.gamma))(policies)
-            gains = admm.reward_gains(preferences, expert_occupancy, policy_occupancy)
-            metric = admm.penalty_metric(expert_occupancy, policy_occupancy, config)
-            consensus = admm.consensus_admm(consensus, gains, metric, config)
+            consensus = admm.reward_step(consensus, agents, agent, preferences, expert_occupancy, mdp, config)
             if infer:
                 stepped, best, q_candidates = preference_step(
                     consensus.common, counts, exits, candidates, preferences, mdp, config, q_candidates, rule)
                 preferences = jnp.where(index >= warmup, stepped, preferences)
             else:
                 best = jnp.zeros(E)
-            scalar = jnp.einsum("sad,ed->esa", consensus.common, preferences)
-            agents = jax.vmap(agent.improve)(agents, scalar, jax.random.split(key, E))
-            returns, _, lengths = admm.evaluate_policies(jax.vmap(agent.policy)(agents), preferences, mdp)
+            agents, _, (returns, _, lengths) = admm.policy_step(agents, agent, consensus.common, preferences, mdp, key)
             metrics = {"preferences": preferences, "log_likelihood": best, "vector_return": returns,
                        "length": lengths}
             return (consensus, agents, preferences, q_candidates), metrics
