@@ -42,6 +42,14 @@ def match_preferences(recorded, given, source: str) -> np.ndarray:
     return np.asarray(index)
 
 
+def first_episodes(demos: Demonstrations, config: Config) -> Demonstrations:
+    """The first ``config.num_demos`` episodes per expert of the configured file's ``demos``; too few raise."""
+    if demos.num_episodes < config.num_demos:
+        raise ValueError(f"the demos in {config.demos!r} hold {demos.num_episodes} episodes per expert, fewer "
+                         f"than num_demos = {config.num_demos}")
+    return demos.replace(**{name: np.asarray(getattr(demos, name))[:, : config.num_demos] for name in EPISODE_FIELDS})
+
+
 def load_demonstrations(config: Config, env=None) -> Demonstrations:
     """The first ``num_demos`` episodes per expert of the configured demos file (its preferences must be the
     config's, in any order), or fresh oracle demonstrations; experts in ``config.preferences`` order."""
@@ -54,11 +62,7 @@ def load_demonstrations(config: Config, env=None) -> Demonstrations:
     if getattr(demos, "preferences", None) is None:
         raise ValueError(f"the demos in {config.demos!r} carry no preferences; this learner needs labelled demos")
     index = match_preferences(demos.preferences, config.preferences, repr(config.demos))
-    if demos.num_episodes < config.num_demos:
-        raise ValueError(f"the demos in {config.demos!r} hold {demos.num_episodes} episodes per expert, fewer "
-                         f"than num_demos = {config.num_demos}")
-    demos = demos.replace(**{name: np.asarray(getattr(demos, name))[:, : config.num_demos] for name in EPISODE_FIELDS})
-    return take_experts(demos, index)
+    return take_experts(first_episodes(demos, config), index)
 
 
 def load_unlabelled_demonstrations(config: Config, env=None) -> Demonstrations:
@@ -69,8 +73,4 @@ def load_unlabelled_demonstrations(config: Config, env=None) -> Demonstrations:
         return oracle_demonstrations(config.env, config.preferences, config.num_demos, config.seed).unlabelled()
     env = config.make_env(absorbing=True) if env is None else env
     demos = Demonstrations.load(config.demos, env)
-    if demos.num_episodes < config.num_demos:
-        raise ValueError(f"the demos in {config.demos!r} hold {demos.num_episodes} episodes per expert, fewer "
-                         f"than num_demos = {config.num_demos}")
-    demos = demos.replace(**{name: np.asarray(getattr(demos, name))[:, : config.num_demos] for name in EPISODE_FIELDS})
-    return demos.unlabelled()
+    return first_episodes(demos, config).unlabelled()
