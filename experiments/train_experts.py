@@ -2,7 +2,8 @@
 of each (paper sec. 5.1), compared with the paper's expert returns (its Table 1).
 
     PYTHONPATH=. python experiments/train_experts.py --env mo-hopper [--total-steps N] [--num-envs 128]
-        [--updates-per-step 64] [--time-limit SECONDS] [--no-demos] [--out experiments/demos]
+        [--updates-per-step 64] [--time-limit SECONDS] [--run-dir DIR [--resume]] [--no-demos]
+        [--out experiments/demos]
     PYTHONPATH=. python experiments/train_experts.py --env mo-hopper --record   (demos from saved experts)
 
 Training writes, after every evaluation, ``<out>/<env>-experts.npz`` (the best evaluated actor of each
@@ -11,7 +12,10 @@ steps, seconds, device), so a run cut short keeps its experts. Then (or with ``-
 files) it writes ``<out>/<env>.npz`` (Demonstrations in the absorbing-state env, for
 ``moiq train --demos``) and ``<out>/<env>-experts.json`` (each expert's vector and scalarised
 demonstration return beside the paper's). ``--time-limit`` stops training after the first evaluation
-past that many seconds.
+past that many seconds. With ``--run-dir`` the whole training state (replay buffers included) is
+checkpointed after every evaluation, and ``--resume`` continues a cut run from its last one (the same
+command with ``--resume`` added). The training record counts wall and process CPU seconds, both
+summed over resumed parts.
 """
 
 from __future__ import annotations
@@ -34,23 +38,29 @@ def train(args, out: pathlib.Path) -> None:
     config = sac.expert_config(args.env, **changes)
     config = config.replace(buffer_size=min(config.offpolicy.buffer_size, config.offpolicy.total_steps))
     device = jax.devices()[0]
+    training = out / f"{args.env}-training.json"
+    earlier = json.loads(training.read_text()) if args.resume and training.exists() else {}
+    wall_before, cpu_before = earlier.get("seconds", 0.0), earlier.get("cpu_seconds", 0.0)
     print(f"{args.env}: SAC experts for {config.preferences}, up to {config.offpolicy.total_steps:,} env steps each, "
           f"on {device.platform} ({device.device_kind})", flush=True)
-    start = time.perf_counter()
+    start, cpu_start = time.perf_counter(), time.process_time()
 
     def keep(state, history):
         sac.save_experts(out / f"{args.env}-experts.npz", config, state.best_params.actor)
         steps = int(np.max(history[-1]["env_steps"]))
         record = {"env": args.env, "device": f"{device.platform} ({device.device_kind})",
-                  "seconds": round(time.perf_counter() - start, 1), "env_steps_per_expert": steps,
+                  "seconds": round(wall_before + time.perf_counter() - start, 1),
+                  "cpu_seconds": round(cpu_before + time.process_time() - cpu_start, 1),
+                  "env_steps_per_expert": steps,
                   "config": config.to_dict(),
                   "history": {k: [np.asarray(h[k], np.float64).round(3).tolist() for h in history]
                               for k in ("env_steps", "eval_scalar_return", "eval_return", "alpha")}}
-        (out / f"{args.env}-training.json").write_text(json.dumps(record, indent=1))
-        print(f"  saved the best experts after {steps:,} env steps each ({record['seconds']:.0f}s)", flush=True)
+        training.write_text(json.dumps(record, indent=1))
+        print(f"  saved the best experts after {steps:,} env steps each ({record['seconds']:.0f}s wall, "
+              f"{record['cpu_seconds']:.0f}s CPU)", flush=True)
 
     until = None if args.time_limit is None else (lambda _: time.perf_counter() - start > args.time_limit)
-    moiq_jax.train(config, until=until, on_chunk=keep)
+    moiq_jax.train(config, until=until, on_chunk=keep, run_dir=args.run_dir, resume=args.resume)
 
 
 def record(args, out: pathlib.Path) -> None:
@@ -87,10 +97,14 @@ def main() -> None:
     parser.add_argument("--seed", type=int)
     parser.add_argument("--num-demos", type=int, default=10)
     parser.add_argument("--time-limit", type=float, help="stop after the first evaluation past this many seconds")
+    parser.add_argument("--run-dir", help="checkpoint the training state here after every evaluation")
+    parser.add_argument("--resume", action="store_true", help="continue the run in --run-dir from its last checkpoint")
     parser.add_argument("--no-demos", action="store_true", help="train only; record later with --record")
     parser.add_argument("--record", action="store_true", help="record demonstrations from saved experts only")
     parser.add_argument("--out", default="experiments/demos")
     args = parser.parse_args()
+    if args.resume and not args.run_dir:
+        parser.error("--resume needs the --run-dir of the run to continue")
     out = pathlib.Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     if not args.record:
