@@ -209,7 +209,8 @@ def _digest(setups) -> str:
 def _record_sweep(run_dir: str, config: Config, values: dict, demos, digest: str, resume: bool) -> None:
     """Write ``run_dir/sweep.json``; on ``resume``, check that the saved one is this sweep's."""
     path = os.path.join(run_dir, SWEEP_FILE)
-    paths = demos is None or isinstance(demos, str) or all(isinstance(d, str) for d in demos)
+    paths = demos is None or isinstance(demos, str) or (
+        isinstance(demos, (list, tuple)) and all(d is None or isinstance(d, str) for d in demos))
     record = _as_json({"config": config.to_dict(), "values": values, "demos": demos if paths else None,
                        "inputs": digest})
     if not resume:

@@ -15,6 +15,7 @@ import pytest
 
 import moiq_jax
 from moiq_jax.checkpoint import Checkpoints
+from moiq_jax.cli import main
 from moiq_jax.config import tuned
 from moiq_jax.train import ALGORITHMS, make_trainer
 
@@ -121,23 +122,23 @@ def test_a_sweep_cut_after_a_chunk_resumes_in_python(tmp_path):
     np.testing.assert_array_equal(resumed.runs["beta"], [0.0, 5.0])
 
 
-@pytest.mark.skipif(MOIQ is None, reason="the package is not installed (pip install -e .)")
-def test_resume_errors_are_clear(tmp_path):
-    out = moiq("sweep", "--resume", str(tmp_path))
-    assert out.returncode == 2 and "is not a sweep directory (no sweep.json" in out.stderr
+def test_resume_errors_are_clear(tmp_path, capsys):
+    def error(*args):
+        assert main(list(args)) == 2
+        return capsys.readouterr().err
+
+    assert "is not a sweep directory (no sweep.json" in error("sweep", "--resume", str(tmp_path))
     (tmp_path / "run").mkdir()
     (tmp_path / "run" / "config.json").write_text("{}")
-    out = moiq("sweep", "--resume", str(tmp_path / "run"))
-    assert out.returncode == 2 and "is a run of `moiq train`; continue it with `moiq train --resume" in out.stderr
+    assert ("is a run of `moiq train`; continue it with `moiq train --resume"
+            in error("sweep", "--resume", str(tmp_path / "run")))
     (tmp_path / "sweep").mkdir()
     (tmp_path / "sweep" / "sweep.json").write_text("{}")
-    out = moiq("sweep", "--resume", str(tmp_path / "sweep"), "--betas", "1", "--total-steps", "600")
-    assert out.returncode == 2
-    assert "--resume continues the sweep's saved config and swept values; drop ['--total-steps', '--betas']" in out.stderr
-    out = moiq("sweep", "--out", str(tmp_path / "sweep"))
-    assert out.returncode == 2 and "already exists; continue it with `moiq sweep --resume" in out.stderr
-    out = moiq("train", "--resume", str(tmp_path / "sweep"))
-    assert out.returncode == 2 and "is a sweep directory" in out.stderr and "moiq sweep --resume" in out.stderr
+    assert ("--resume continues the sweep's saved config and swept values; drop ['--total-steps', '--betas']"
+            in error("sweep", "--resume", str(tmp_path / "sweep"), "--betas", "1", "--total-steps", "600"))
+    assert "already exists; continue it with `moiq sweep --resume" in error("sweep", "--out", str(tmp_path / "sweep"))
+    message = error("train", "--resume", str(tmp_path / "sweep"))
+    assert "is a sweep directory" in message and "moiq sweep --resume" in message
     with pytest.raises(ValueError, match="resume=True continues the sweep saved in run_dir; give run_dir"):
         moiq_jax.sweep(tuned("cdst"), resume=True, seed=[0])
     with pytest.raises(ValueError, match="is not a sweep directory"):
