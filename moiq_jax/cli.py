@@ -139,7 +139,12 @@ def load_config_file(path: str) -> dict:
 
 def _saved_config(run_dir: str) -> Config:
     """The resolved config a run directory of `moiq train` keeps in its config.json."""
+    from moiq_jax.train import SWEEP_FILE
+
     saved = os.path.join(run_dir, "config.json")
+    if not os.path.exists(saved) and os.path.exists(os.path.join(run_dir, SWEEP_FILE)):
+        raise ValueError(f"{run_dir!r} is a sweep directory (`moiq sweep`, `moiq train --seeds`); continue it with "
+                         f"`moiq sweep --resume {run_dir}`")
     if not os.path.exists(saved):
         raise ValueError(f"{run_dir!r} is not a run directory of `moiq train` (no config.json)")
     return Config(**load_config_file(saved))
@@ -180,44 +185,55 @@ def _print_returns_against_experts(config: Config, result) -> None:
         print(f"  {_format_preference(w):<12} " + " ".join(f"{c:<26}" for c in cells))
 
 
-def _run_sweep(config: Config, values: dict, out_dir: str, demos=None) -> None:
+def _run_sweep(config: Config, values: dict, out_dir: str, demos=None, resume: bool = False) -> None:
     """Train every combination of ``values`` (swept name -> list; ``preferences``: a list of preference
-    sets) as one vmapped program, one CPU device per run (``runtime.split_cpu_into_devices``); write each
-    run's config.json and metrics.csv to ``out_dir/<name><value>-...`` (e.g. ``beta0.5-set1-seed0``, so
-    `moiq plot` reads them) and print final and best returns per run, one table per preference set."""
+    sets) as one vmapped program, one CPU device per run (``runtime.split_cpu_into_devices``), checkpointed
+    in ``out_dir`` after every chunk (``resume``: continue it); each run's config.json and metrics.csv go to
+    ``out_dir/<name><value>-...`` (e.g. ``beta0.5-set1-seed0``, so `moiq plot` reads them). Prints final
+    and best returns per run, one table per preference set."""
     import moiq_jax
-    from moiq_jax.runlog import RunLog
     from moiq_jax.runtime import split_cpu_into_devices
+    from moiq_jax.train import run_dir_names
 
     split_cpu_into_devices(int(np.prod([len(v) for v in values.values()])))
 
-    result = moiq_jax.sweep(config, demos=demos, **values)
-    history = result.history
-    steps = np.asarray(history["env_steps"])  # [runs, evals(, experts)]
+    print(f"sweep directory: {out_dir}", flush=True)
+    result = moiq_jax.sweep(config, demos=demos, run_dir=out_dir, resume=resume,
+                            log=lambda line: print(line, flush=True), **values)
     sets = result.runs.get("set", np.zeros(len(result.runs["seed"]), int))
     print(f"{len(result.runs['seed'])} runs; scalarised returns per preference")
-    for run in range(len(result.runs["seed"])):
+    for run, name in enumerate(run_dir_names(result.runs)):
         run_result = result.run(run)
         if run == 0 or sets[run] != sets[run - 1]:
             set_name = f"set {sets[run]} " if "set" in result.runs else ""
             print(f"{set_name}{[_format_preference(w) for w in run_result.preferences]}")
         swept = {name: v[run].item() for name, v in result.runs.items() if name != "preferences"}
-        run_dir = os.path.join(out_dir, "-".join(f"{name}{value:g}" for name, value in swept.items()))
-        log = RunLog(run_dir, run_result.config, total_steps=int(steps[run].max()), progress=False)
-        for t in range(steps.shape[1]):
-            log.log(int(steps[run, t].max()), {name: np.asarray(v)[t] for name, v in run_result.history.items()})
-        log.close()
         scalar = np.asarray(run_result.history["eval_scalar_return"])
         best = scalar[int(np.argmax(scalar.mean(axis=1)))]
         shown = " ".join(f"{name} {value:<5g}" if name not in ("seed", "set") else f"{name} {int(value):<3d}"
                          for name, value in swept.items())
-        print(f"  {shown} final {_format_vector(scalar[-1])}  best {_format_vector(best)}  -> {run_dir}")
+        print(f"  {shown} final {_format_vector(scalar[-1])}  best {_format_vector(best)}  -> "
+              f"{os.path.join(out_dir, name)}")
 
 
 def _cmd_sweep(args) -> int:
     from moiq_jax.algos.offpolicy import Algorithm
-    from moiq_jax.train import algorithm_of, swept_names, validate
+    from moiq_jax.train import algorithm_of, saved_sweep, swept_names, validate
 
+    if args.resume:
+        given = ["--" + name.replace("_", "-") for name in FIELDS if getattr(args, name, None) is not None]
+        given += [flag for flag, value in (("--betas", args.betas), ("--preference-sets", args.preference_sets),
+                                           ("--seeds", args.seeds), ("--out", args.out), ("--config", args.config))
+                  if value is not None]
+        if given:
+            raise ValueError(f"--resume continues the sweep's saved config and swept values; drop {given}")
+        if os.path.exists(os.path.join(args.resume, "config.json")):
+            raise ValueError(f"{args.resume!r} is a run of `moiq train`; continue it with `moiq train --resume "
+                             f"{args.resume}`")
+        config, values, demos = saved_sweep(args.resume)
+        _run_sweep(config, values, args.resume, demos, resume=True)
+        return 0
+    seeds = 1 if args.seeds is None else args.seeds
     demos, args.demos = args.demos, None
     if demos and not args.preference_sets and len(demos) > 1:
         raise ValueError(f"--demos given {len(demos)} times: give one per --preference-sets entry")
@@ -236,8 +252,9 @@ def _cmd_sweep(args) -> int:
                          "seed=[...]) trains every seed as one program")
     out_dir = args.out or os.path.join("runs", f"sweep-{config.env}-{config.algo}-{time.strftime('%Y%m%d-%H%M%S')}")
     if os.path.exists(out_dir) and os.listdir(out_dir):
-        raise ValueError(f"sweep directory {out_dir!r} already exists; choose another --out")
-    values = {"seed": list(range(config.seed, config.seed + args.seeds))}
+        raise ValueError(f"sweep directory {out_dir!r} already exists; continue it with `moiq sweep --resume "
+                         f"{out_dir}` or choose another --out")
+    values = {"seed": list(range(config.seed, config.seed + seeds))}
     if args.betas:
         if "beta" not in swept_names(config):
             raise ValueError(f"--betas: {config.algo} has no consensus penalty weight to sweep")
@@ -278,7 +295,7 @@ def _cmd_train(args) -> int:
                                  result.extras["optimal_return"]):
             print(f"  {_format_preference(w):<12} {_format_vector(v)} {float(s):8.2f}   optimum {float(best):8.2f}")
         return 0
-    if args.seeds > 1:  # several seeds train as one vmapped program (no checkpoints: see `moiq sweep`)
+    if args.seeds > 1:  # several seeds train as one vmapped program (`moiq sweep --resume RUN_DIR` continues it)
         _run_sweep(config, {"seed": list(range(config.seed, config.seed + args.seeds))}, run_dir)
         return 0
     print(f"run directory: {run_dir}")
@@ -473,20 +490,24 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--resume", metavar="RUN_DIR", help="continue a stopped run from its last checkpoint")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--seeds", type=int, default=1,
-                   help="train seeds seed..seed+N-1 as one vmapped program, one sub-directory each (no checkpoints)")
+                   help="train seeds seed..seed+N-1 as one vmapped program, one sub-directory each (a sweep: "
+                        "`moiq sweep --resume RUN_DIR` continues it)")
     p.set_defaults(func=_cmd_train)
 
     p = sub.add_parser("sweep", help="train every (beta, preference set, seed) combination as one vmapped program",
                        description="Train the product of --betas, --preference-sets and --seeds in one compiled "
-                                   "program (moiq, iq_learn); each run's config and metrics go to "
-                                   "OUT/beta<b>-set<i>-seed<s> (set only with --preference-sets).")
+                                   "program (moiq, iq_learn), chunk by chunk; each run's config and metrics go to "
+                                   "OUT/beta<b>-set<i>-seed<s> (set only with --preference-sets), the state of all "
+                                   "runs to OUT/checkpoints after every chunk; --resume OUT continues a stopped sweep.")
     add_config_flags(p, repeated=("demos",))
     p.add_argument("--betas", nargs="+", type=float, help="consensus penalty weights (default: --beta)")
     p.add_argument("--preference-sets", nargs="+", metavar='"W1,W2 W1,W2 ..."',
                    help="expert preference sets, each one quoted argument of space-separated vectors, all of "
                         "one size; demos: the env's oracle experts, or --demos FILE once per set, in order")
-    p.add_argument("--seeds", type=int, default=1, help="number of seeds, from --seed on; default: 1")
+    p.add_argument("--seeds", type=int, default=None, help="number of seeds, from --seed on; default: 1")
     p.add_argument("--out", help="sweep directory (default: runs/sweep-<env>-<algo>-<time>)")
+    p.add_argument("--resume", metavar="DIR", help="continue a stopped sweep from its last checkpoint, with its "
+                                                    "saved config and swept values")
     p.set_defaults(func=_cmd_sweep)
 
     p = sub.add_parser("eval", help="evaluate a run's best parameters per preference (transfer)",

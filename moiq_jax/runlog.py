@@ -92,3 +92,20 @@ class RunLog:
     def close(self) -> None:
         self.bar.close()
         self.writer.close()
+
+
+class RunLogs:
+    """The run directories of a sweep, ``run_dir/<name>`` per run, each a ``RunLog`` under its run's config;
+    ``log`` takes metrics with a leading run axis and gives each run its own."""
+
+    def __init__(self, run_dir: str | os.PathLike, names, configs, total_steps: int, resume_step: int = 0):
+        self.logs = [RunLog(os.path.join(os.fspath(run_dir), name), config, total_steps, resume_step, progress=False)
+                     for name, config in zip(names, configs)]
+
+    def log(self, step: int, metrics: dict, summary: str = "") -> None:
+        for run, log in enumerate(self.logs):
+            log.log(step, {name: np.asarray(value)[run] for name, value in metrics.items()})
+
+    def close(self) -> None:
+        for log in self.logs:
+            log.close()

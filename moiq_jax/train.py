@@ -6,7 +6,10 @@ one off-policy loop) or ADMM's tabular program. Both return a ``Result``.
 
 from __future__ import annotations
 
+import hashlib
 import itertools
+import json
+import os
 import time
 
 import jax
@@ -20,7 +23,7 @@ from moiq_jax.experts.demonstrations import Demonstrations
 from moiq_jax.experts.loading import load_demonstrations, match_preferences, take_experts
 from moiq_jax.preferences import check_preferences
 from moiq_jax.result import Result
-from moiq_jax.runner import run_chunks
+from moiq_jax.runner import all_runs, one_run, run_chunks
 from moiq_jax.runtime import shard_runs
 
 ALGORITHMS = {
@@ -69,8 +72,8 @@ parameters in the config's expert order). ``demos``
                              learner=state.learner.replace(params=trainer.to_config_order(state.learner.params)))
 
     hook = None if on_chunk is None else (lambda state, history: on_chunk(in_config_order(state), history))
-    state, history, seconds = run_chunks(trainer, config, run_dir=run_dir, resume=resume, log=log, progress=progress,
-                                         until=until, on_chunk=hook)
+    state, history, seconds = run_chunks(one_run(trainer, config), run_dir=run_dir, resume=resume, log=log,
+                                         progress=progress, until=until, on_chunk=hook)
     stacked = {k: np.stack([h[k] for h in history]) for k in history[0]}
     state = in_config_order(state)
     return Result(config, trainer.preferences, stacked, state.learner.params, state.best_params,
@@ -103,11 +106,18 @@ def preference_sets(sets, reward_dim: int, demos=None) -> tuple[list[np.ndarray]
     return checked, list(demos)
 
 
-def sweep(config: Config, demos=None, **values) -> Result:
+def sweep(config: Config, demos=None, run_dir: str | None = None, resume: bool = False, log=print,
+          **values) -> Result:
     """Train every combination of the given values (``seed=[...]``, and the algorithm's hyperparameters,
-    e.g. ``beta=[...]`` for moiq; the config's value for those not given) as one vmapped, compiled program,
-    sharded over the run axis when several devices are present and they divide the number of runs (on
-    CPU, ``runtime.split_cpu_into_devices`` makes the devices). Returns a ``Result`` with a run axis.
+    e.g. ``beta=[...]`` for moiq; the config's value for those not given) as one vmapped program, run chunk
+    by chunk (``eval_interval`` env steps each, logged by ``log``), sharded over the run axis when several
+    devices are present and they divide the number of runs (on CPU, ``runtime.split_cpu_into_devices``
+    makes the devices). Returns a ``Result`` with a run axis.
+
+    With ``run_dir``: the sweep's config and values go to ``run_dir/sweep.json``, each run's config and
+    metrics to ``run_dir/<name><value>-...`` (``run_dir_names``), the state of all runs to
+    ``run_dir/checkpoints`` after every chunk; ``resume=True`` continues a sweep cut there (given the same
+    config, values and demos), ending with the same result as an uninterrupted one.
 
     ``preferences=[set_1, set_2, ...]`` also sweeps preference sets of one size (each set's demonstrations
     and preferences are inputs of the program, not constants); ``demos`` is then one ``Demonstrations`` or
@@ -116,14 +126,20 @@ def sweep(config: Config, demos=None, **values) -> Result:
     algorithm = algorithm_of(config)
     validate(config)
     known = swept_names(config)
+    values = {name: value for name, value in values.items() if value is not None}
+    given_values = dict(values)
     sets = values.pop("preferences", None)
     unknown = sorted(set(values) - set(known))
     if unknown:
         raise ValueError(f"a sweep of {config.algo} varies {', '.join(known)}; got {unknown} "
                          "(and preference sets, as preferences=[set, ...])")
+    if resume and run_dir is None:
+        raise ValueError("resume=True continues the sweep saved in run_dir; give run_dir")
     if not isinstance(algorithm, Algorithm):
         if sets is not None:
             raise ValueError(f"a sweep of {config.algo} varies seed only; train each preference set separately")
+        if run_dir is not None:
+            raise ValueError(f"a sweep of {config.algo} is one program of seconds, not checkpointed; drop run_dir")
         return algorithm.train_seeds(config, [config.seed] if values.get("seed") is None else values["seed"])
     start = time.perf_counter()
     swept_sets = sets is not None
@@ -147,13 +163,6 @@ def sweep(config: Config, demos=None, **values) -> Result:
     hyper = {name: jnp.asarray(runs[name], jnp.float32) for name in trainer.hyper}
     setup = jax.tree_util.tree_map(lambda *x: jnp.stack(x)[runs["set"]], *setups)
     keys, hyper, setup = shard_runs(keys, hyper, setup)
-
-    def one(key, hyper, setup):
-        state, history = trainer.train_with(key, hyper, setup)
-        return (trainer.to_config_order(state.learner.params, 0, setup["back"]),
-                trainer.to_config_order(state.best_params, 0, setup["back"]), state.best_return, history)
-
-    final, best, best_return, history = jax.jit(jax.vmap(one))(keys, hyper, setup)
     runs = {name: np.asarray(v, np.float32) if name in hyper else v for name, v in runs.items()}
     preferences = np.stack(given)[runs["set"]]
     if swept_sets:
@@ -161,8 +170,86 @@ def sweep(config: Config, demos=None, **values) -> Result:
     else:
         runs.pop("set")
         preferences = trainer.preferences
-    return Result(config, preferences, jax.device_get(history), final, best, np.asarray(best_return),
+    names = run_dir_names(runs)
+    each = Result(config, preferences, {}, None, None, np.zeros(len(names)), runs=runs)  # for each run's config
+    if run_dir is not None:
+        _record_sweep(run_dir, config, given_values, demos, _digest(setups), resume)
+    state, history, _ = run_chunks(all_runs(trainer, config, keys, hyper, setup, names,
+                                            [each.run(i).config for i in range(len(names))]),
+                                   run_dir=run_dir, resume=resume, log=log)
+    in_config_order = jax.jit(jax.vmap(lambda s, back: (trainer.to_config_order(s.learner.params, 0, back),
+                                                        trainer.to_config_order(s.best_params, 0, back))))
+    final, best = in_config_order(state, setup["back"])
+    history = {name: np.stack([h[name] for h in history], axis=1) for name in history[0]}
+    return Result(config, preferences, history, final, best, np.asarray(state.best_return),
                   time.perf_counter() - start, runs=runs)
+
+
+def run_dir_names(runs: dict) -> list[str]:
+    """Each run's directory name in a sweep directory, its swept values: ``beta0.5-set1-seed0``."""
+    swept = {name: v for name, v in runs.items() if name != "preferences"}
+    return ["-".join(f"{name}{v[run].item():g}" for name, v in swept.items()) for run in range(len(runs["seed"]))]
+
+
+SWEEP_FILE = "sweep.json"  # in a sweep's run_dir: the config, swept values and demos it was started with
+
+
+def _as_json(value):
+    return json.loads(json.dumps(value, default=lambda x: np.asarray(x).tolist()))
+
+
+def _digest(setups) -> str:
+    """A fingerprint of the preference sets' inputs (demonstrations, preferences), to check a resumed sweep's."""
+    digest = hashlib.sha256()
+    for leaf in jax.tree_util.tree_leaves(jax.device_get(setups)):
+        digest.update(np.ascontiguousarray(leaf).tobytes())
+    return digest.hexdigest()
+
+
+def _record_sweep(run_dir: str, config: Config, values: dict, demos, digest: str, resume: bool) -> None:
+    """Write ``run_dir/sweep.json``; on ``resume``, check that the saved one is this sweep's."""
+    path = os.path.join(run_dir, SWEEP_FILE)
+    paths = demos is None or isinstance(demos, str) or (
+        isinstance(demos, (list, tuple)) and all(d is None or isinstance(d, str) for d in demos))
+    record = _as_json({"config": config.to_dict(), "values": values, "demos": demos if paths else None,
+                       "inputs": digest})
+    if not resume:
+        if os.path.exists(path) or os.path.exists(os.path.join(run_dir, "checkpoints")):
+            raise ValueError(f"{run_dir!r} already holds a sweep; continue it with resume=True (`moiq sweep --resume "
+                             f"{run_dir}`) or choose another directory")
+        os.makedirs(run_dir, exist_ok=True)
+        with open(path, "w") as f:
+            json.dump(record, f, indent=1)
+        return
+    saved = _read_sweep(run_dir)
+    for what, key in (("config", "config"), ("swept values", "values"), ("demonstrations", "inputs")):
+        if saved[key] != record[key]:
+            if key == "config":
+                given, kept = record[key], saved[key]
+                differ = sorted(name for name in {*given, *kept} if given.get(name) != kept.get(name))
+                detail = "; ".join(f"{name}: saved {kept.get(name)!r}, given {given.get(name)!r}" for name in differ)
+            elif key == "values":
+                detail = f"saved {saved[key]}, given {record[key]}"
+            else:
+                detail = "the preference sets' demonstrations or preferences differ"
+            raise ValueError(f"{run_dir!r} holds a sweep of other {what} ({detail}); resume it with the saved "
+                             "ones (`moiq sweep --resume` reads them)")
+
+
+def _read_sweep(run_dir: str) -> dict:
+    path = os.path.join(run_dir, SWEEP_FILE)
+    if not os.path.exists(path):
+        raise ValueError(f"{run_dir!r} is not a sweep directory (no {SWEEP_FILE}; `moiq sweep` and sweep(..., "
+                         "run_dir=...) write one)")
+    with open(path) as f:
+        return json.load(f)
+
+
+def saved_sweep(run_dir: str) -> tuple[Config, dict, object]:
+    """``(config, values, demos)`` a sweep directory was started with: ``sweep(config, demos, run_dir,
+    resume=True, **values)`` continues it."""
+    saved = _read_sweep(run_dir)
+    return Config(**saved["config"]), saved["values"], saved["demos"]
 
 
 def set_demos_of(config: Config, preferences, demos, index: int) -> Demonstrations | None:

@@ -121,7 +121,8 @@ def test_sweep_writes_one_run_directory_per_beta_and_seed(tmp_path):
                "--hidden-sizes", "8", "8", "--batch-size", "8", "--learning-starts", "50", "--buffer-size", "600",
                "--out", str(tmp_path / "sweep"))
     assert out.returncode == 0, out.stderr
-    assert sorted(p.name for p in (tmp_path / "sweep").iterdir()) == ["beta0-seed0", "beta5-seed0"]
+    runs = sorted(p.name for p in (tmp_path / "sweep").iterdir() if (p / "metrics.csv").exists())
+    assert runs == ["beta0-seed0", "beta5-seed0"]  # beside the sweep's checkpoints and sweep.json
     for beta in ("0", "5"):
         metrics = read_metrics(str(tmp_path / "sweep" / f"beta{beta}-seed0"))
         np.testing.assert_array_equal(metrics.steps, [300, 600])

@@ -24,7 +24,8 @@ def moiq(*args):
 def test_sweep_over_preference_sets_writes_one_directory_per_set_and_seed(tmp_path):
     out = moiq("sweep", "--preference-sets", "0.9,0.1 0.1,0.9", "0.2,0.8 0.8,0.2", *SMALL, "--out", str(tmp_path / "s"))
     assert out.returncode == 0, out.stderr
-    assert sorted(p.name for p in (tmp_path / "s").iterdir()) == ["beta0.5-set0-seed0", "beta0.5-set1-seed0"]
+    runs = sorted(p.name for p in (tmp_path / "s").iterdir() if (p / "metrics.csv").exists())
+    assert runs == ["beta0.5-set0-seed0", "beta0.5-set1-seed0"]
     for name, labels in (("beta0.5-set0-seed0", [[0.9, 0.1], [0.1, 0.9]]), ("beta0.5-set1-seed0", [[0.2, 0.8], [0.8, 0.2]])):
         assert json.loads((tmp_path / "s" / name / "config.json").read_text())["preferences"] == labels
     assert "set 0 ['[0.9, 0.1]', '[0.1, 0.9]']" in out.stdout and "set 1 ['[0.2, 0.8]', '[0.8, 0.2]']" in out.stdout
