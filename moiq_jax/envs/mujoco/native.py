@@ -11,11 +11,12 @@ back and applies the task's rules in float64 numpy, as Gymnasium does. Outputs d
 (every input of ``mj_step`` is set from the state), so steps are bit-reproducible and the step is
 pure: it runs under ``jit``, ``vmap`` and ``lax.scan``.
 
-Threads: the envs of a batch are split into chunks stepped on a persistent thread pool (one
-``MjData`` per thread; MuJoCo's bindings release the GIL). ``mujoco.rollout.Rollout`` is not used:
-it returns the state without the warm start (``mjSTATE_FULLPHYSICS``), so a step could not be
-continued exactly from its output; a plain loop of ``mj_setState``/``mj_step``/``mj_getState`` on the
-pool runs within a few per cent of it (results/env_throughput/README.md).
+Threads: the calling thread and ``nthread - 1`` workers of a persistent pool (one ``MjData`` each;
+MuJoCo's bindings release the GIL in ``mj_setState``, ``mj_step`` and ``mj_getState``) claim small
+chunks of envs from a shared counter until none is left, so no thread waits on another's fixed share.
+``mujoco.rollout.Rollout`` is not used: it returns the state without the warm start
+(``mjSTATE_FULLPHYSICS``), so a step could not be continued exactly from its output; the loop of
+``mj_setState`` (state and controls), ``mj_step`` and ``mj_getState`` keeps it.
 
 Reset and ``state_at`` need no physics and no callback: Gymnasium's ``mj_resetData`` + ``set_state``
 leaves time and warm start zero, the free root body's ``xpos`` equal to its ``qpos[:3]`` and ``cfrc_ext``
