@@ -11,11 +11,12 @@ back and applies the task's rules in float64 numpy, as Gymnasium does. Outputs d
 (every input of ``mj_step`` is set from the state), so steps are bit-reproducible and the step is
 pure: it runs under ``jit``, ``vmap`` and ``lax.scan``.
 
-Threads: the envs of a batch are split into chunks stepped on a persistent thread pool (one
-``MjData`` per thread; MuJoCo's bindings release the GIL). ``mujoco.rollout.Rollout`` is not used:
-it returns the state without the warm start (``mjSTATE_FULLPHYSICS``), so a step could not be
-continued exactly from its output; a plain loop of ``mj_setState``/``mj_step``/``mj_getState`` on the
-pool runs within a few per cent of it (results/env_throughput/README.md).
+Threads: the calling thread and ``nthread - 1`` workers of a persistent pool (one ``MjData`` each;
+MuJoCo's bindings release the GIL in ``mj_setState``, ``mj_step`` and ``mj_getState``) claim small
+chunks of envs from a shared counter until none is left, so no thread waits on another's fixed share.
+``mujoco.rollout.Rollout`` is not used: it returns the state without the warm start
+(``mjSTATE_FULLPHYSICS``), so a step could not be continued exactly from its output; the loop of
+``mj_setState`` (state and controls), ``mj_step`` and ``mj_getState`` keeps it.
 
 Reset and ``state_at`` need no physics and no callback: Gymnasium's ``mj_resetData`` + ``set_state``
 leaves time and warm start zero, the free root body's ``xpos`` equal to its ``qpos[:3]`` and ``cfrc_ext``
@@ -28,6 +29,7 @@ stepping a few envs, and ``AutoReset`` resets every step.
 from __future__ import annotations
 
 import functools
+import itertools
 import os
 import queue
 from concurrent.futures import ThreadPoolExecutor
@@ -42,7 +44,9 @@ from moiq_jax.envs.base import is_concrete
 from moiq_jax.envs.mujoco.base import MujocoEnv, Physics, Task
 
 STATE_SPEC = int(mujoco.mjtState.mjSTATE_FULLPHYSICS | mujoco.mjtState.mjSTATE_WARMSTART)
-MIN_ENVS_PER_CHUNK = 4  # smaller batches are stepped on the calling thread
+INPUT_SPEC = STATE_SPEC | int(mujoco.mjtState.mjSTATE_CTRL)  # the state, then the controls: one mj_setState per env
+MIN_ENVS_TO_SPLIT = 4  # smaller batches are stepped on the calling thread
+CHUNKS_PER_THREAD = 16
 
 
 @struct.dataclass
@@ -87,6 +91,10 @@ class Simulator:
                 raise ValueError(f"{task.xml_file}: the main body {task.main_body!r} must have one free joint")
             self.body_qpos = slice(model.jnt_qposadr[joint], model.jnt_qposadr[joint] + 3)
         self.width = self.nstate + (3 if self.body is not None else 0)
+        probe, data = np.arange(self.nstate + model.nu, dtype=np.float64), mujoco.MjData(model)
+        mujoco.mj_setState(model, data, probe, INPUT_SPEC)
+        if mujoco.mj_stateSize(model, INPUT_SPEC) != probe.size or not np.array_equal(data.ctrl, probe[self.nstate:]):
+            raise ValueError(f"{task.xml_file}: mj_setState does not lay out the controls after the state")
         self.datas: queue.SimpleQueue = queue.SimpleQueue()  # one MjData per thread stepping at a time
         for _ in range(nthread):
             self.datas.put(mujoco.MjData(model))
@@ -124,38 +132,53 @@ class Simulator:
         batch = action.shape[:-1]
         values = self.with_pending(from_bits(bits).reshape(-1, self.width).copy(),
                                    np.asarray(pending).reshape(-1, self.model.nq + self.model.nv))
-        action = np.asarray(action, np.float32).reshape(-1, self.model.nu)
-        n = values.shape[0]
+        n, ns = values.shape[0], self.nstate
+        action = np.asarray(action, np.float32).reshape(n, self.model.nu)
+        inputs = np.empty((n, ns + self.model.nu))
+        inputs[:, :ns], inputs[:, ns:] = values[:, :ns], action  # ctrl as MjData holds it: float64 of the float32
         out = np.empty_like(values)
         cfrc = np.empty((n, self.model.nbody, 6)) if self.task.contact_forces else None
-        size = max(MIN_ENVS_PER_CHUNK, -(-n // (2 * self.nthread)))  # about 2 chunks per thread
-        chunks = [(lo, min(lo + size, n)) for lo in range(0, n, size)]
-        if self.pool is None:
-            self._step_range(0, n, values, action, out, cfrc)
-        else:
-            futures = [self.pool.submit(self._step_range, lo, hi, values, action, out, cfrc) for lo, hi in chunks[1:]]
-            self._step_range(*chunks[0], values, action, out, cfrc)  # this thread takes a chunk too
-            for future in futures:
-                future.result()
+        self.run_chunks(n, inputs, out, cfrc)
         before, after = self.physics(values), self.physics(out, cfrc)
         reward, done = self.task.reward_and_done(before, after, action, np)
         obs = self.task.observe(after, np)
         return (to_bits(out).reshape(*batch, self.width, 2), obs.astype(np.float32).reshape(*batch, -1),
                 reward.astype(np.float32).reshape(*batch, -1), np.asarray(done, bool).reshape(batch))
 
-    def _step_range(self, lo, hi, values, action, out, cfrc):
-        model, data, ns, frame_skip = self.model, self.datas.get(), self.nstate, self.task.frame_skip
+    def run_chunks(self, n, inputs, out, cfrc):
+        """Steps envs ``0..n-1`` in chunks of about ``n / (CHUNKS_PER_THREAD * nthread)`` envs that the calling
+        thread and ``nthread - 1`` pool workers claim one at a time until none is left, so that a thread that
+        starts late or steps slower states takes fewer chunks (no thread waits for another's fixed share)."""
+        size = max(1, -(-n // (CHUNKS_PER_THREAD * self.nthread)))
+        nchunks = -(-n // size)
+        if self.pool is None or nchunks == 1 or n < MIN_ENVS_TO_SPLIT:
+            self._step_chunks(iter([0]), 1, n, n, inputs, out, cfrc)
+            return
+        claim = itertools.count()  # next() on it is one C call, atomic under the GIL
+        args = (claim, nchunks, size, n, inputs, out, cfrc)
+        futures = [self.pool.submit(self._step_chunks, *args) for _ in range(min(self.nthread, nchunks) - 1)]
+        self._step_chunks(*args)  # this thread claims chunks too
+        for future in futures:
+            future.result()
+
+    def _step_chunks(self, claim, nchunks, size, n, inputs, out, cfrc):
+        """Steps the chunks it claims from ``claim`` on one ``MjData``: ``inputs`` ``[n, nstate + nu]`` (state, ctrl)
+        to ``out`` ``[n, width]`` (state, main body's xpos) and ``cfrc`` (contact forces, or None)."""
+        model, data, frame_skip, body = self.model, self.datas.get(), self.task.frame_skip, self.body
+        states = out[:, :self.nstate]
         try:
-            for i in range(lo, hi):
-                mujoco.mj_setState(model, data, values[i, :ns], STATE_SPEC)
-                data.ctrl[:] = action[i]
-                mujoco.mj_step(model, data, frame_skip)
-                if cfrc is not None:
-                    mujoco.mj_rnePostConstraint(model, data)
-                    cfrc[i] = data.cfrc_ext
-                mujoco.mj_getState(model, data, out[i, :ns], STATE_SPEC)
-                if self.body is not None:
-                    out[i, ns:] = data.xpos[self.body]
+            for chunk in claim:
+                if chunk >= nchunks:
+                    break
+                for i in range(chunk * size, min(chunk * size + size, n)):
+                    mujoco.mj_setState(model, data, inputs[i], INPUT_SPEC)
+                    mujoco.mj_step(model, data, frame_skip)
+                    if cfrc is not None:
+                        mujoco.mj_rnePostConstraint(model, data)
+                        cfrc[i] = data.cfrc_ext
+                    mujoco.mj_getState(model, data, states[i], STATE_SPEC)
+                    if body is not None:
+                        out[i, self.nstate:] = data.xpos[body]
         finally:
             self.datas.put(data)
 
