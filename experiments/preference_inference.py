@@ -192,7 +192,7 @@ def plot_cdst(ax, r: dict) -> None:
     n = len(r["per_seed"])
     ax.set_title(f"cdst MOIQ: all experts' returns {r['seeds_all_match_best_evaluation']}/{n},\n"
                  f"true-reward optimum matches {r['seeds_all_inferred_match_true_reward']}/{n}", fontsize=9)
-    ax.legend(fontsize=6, loc="center left")
+    ax.legend(fontsize=6, loc="upper right")
 
 
 def main() -> None:
