@@ -63,6 +63,9 @@ parameters in the config's expert order). ``demos``
     algorithm = algorithm_of(config)
     validate(config)
     if not isinstance(algorithm, Algorithm):
+        if demos is not None:
+            raise ValueError(f"{config.algo}{' inferring preferences' if config.infer_preferences else ''} reads its "
+                             "demonstrations from config.demos (a file) or the oracle experts, not a demos argument")
         return algorithm.train_seeds(config, [config.seed]).run(0)
     trainer = make_trainer(config, algorithm, demos)
 

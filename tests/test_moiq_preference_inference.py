@@ -72,7 +72,11 @@ def test_preference_step_recovers_the_experts_behaviour_under_the_true_reward(cd
     np.testing.assert_allclose(kept, start)
 
 
-def test_unsupported_combinations_raise():
+def test_unsupported_combinations_raise(cdst):
+    import moiq_jax
+
+    with pytest.raises(ValueError, match="moiq inferring preferences reads its demonstrations from config.demos"):
+        moiq_jax.train(Config(algo="moiq", infer_preferences=True), demos=cdst[1])
     with pytest.raises(ValueError, match="infer_preferences runs with algo admm or moiq"):
         Config(algo="sac", infer_preferences=True).validate()
     with pytest.raises(ValueError, match="infers preferences on cdst"):
