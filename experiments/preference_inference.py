@@ -136,7 +136,11 @@ def plot(summary: dict, path: str) -> None:
     import matplotlib.pyplot as plt
 
     settings = [(env, name, r) for env, group in summary["settings"].items() for name, r in group.items()]
-    fig, axes = plt.subplots(1, len(settings), figsize=(3.6 * len(settings), 3.8), squeeze=False)
+    cdst = summary.get("cdst")  # written by experiments/preference_inference_cdst.py
+    fig, axes = plt.subplots(1, len(settings) + bool(cdst), figsize=(3.6 * (len(settings) + bool(cdst)), 3.8),
+                             squeeze=False)
+    if cdst:
+        plot_cdst(axes[0, -1], cdst)
     for ax, (env, name, r) in zip(axes[0], settings):
         for s, p in enumerate(r["per_seed"]):
             for e, x in enumerate(sorted(p["experts"], key=lambda x: -x["true"][0])):
@@ -162,6 +166,33 @@ def plot(summary: dict, path: str) -> None:
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+def plot_cdst(ax, r: dict) -> None:
+    """The cdst panel: per seed and expert the true-reward interval of the expert's behaviour, the learned
+    actor's interval at the best evaluation, the preference then in force (o: MOIQ reproduced the expert's
+    return there, x: not) and the hidden label."""
+    for s, p in enumerate(r["per_seed"]):
+        for e, x in enumerate(sorted(p["experts"], key=lambda x: -x["true"][0])):
+            y = e + (s - 2) * 0.08
+            first = s == 0 and e == 0
+            if x["interval_true_reward"]:
+                ax.plot(x["interval_true_reward"], [y, y], color="tab:green", linewidth=5, alpha=0.35,
+                        solid_capstyle="butt", label="true-reward interval" if first else None)
+            if x["interval_learned_actor"]:
+                ax.plot(x["interval_learned_actor"], [y, y], color="tab:blue", linewidth=1,
+                        label="learned actor's interval" if first else None)
+            ax.plot(x["at_best_evaluation"][0], y, "o" if x["matches_best_evaluation"] else "x", color="tab:red",
+                    label="inferred" if first else None)
+            ax.plot(x["true"][0], y, "|", color="black", markersize=10, label="hidden label" if first else None)
+    ax.set_xlim(-0.02, 1.02)
+    ax.set_xlabel("w[0] (weight of the treasure)")
+    ax.set_yticks(range(len(r["preferences"])))
+    ax.set_yticklabels([str(w) for w in sorted(r["preferences"], key=lambda w: -w[0])], fontsize=7)
+    n = len(r["per_seed"])
+    ax.set_title(f"cdst MOIQ: all experts' returns {r['seeds_all_match_best_evaluation']}/{n},\n"
+                 f"true-reward optimum matches {r['seeds_all_inferred_match_true_reward']}/{n}", fontsize=9)
+    ax.legend(fontsize=6, loc="upper right")
 
 
 def main() -> None:
@@ -190,6 +221,12 @@ def main() -> None:
                   flush=True)
     summary["wall_seconds"] = round(time.time() - start, 1)
     os.makedirs(args.out, exist_ok=True)
+    path = os.path.join(args.out, "summary.json")
+    if os.path.exists(path):  # keep the cdst entry of experiments/preference_inference_cdst.py
+        with open(path) as f:
+            previous = json.load(f)
+        if "cdst" in previous:
+            summary["cdst"] = previous["cdst"]
     with open(os.path.join(args.out, "summary.json"), "w") as f:
         json.dump(summary, f, indent=1)
     plot(summary, os.path.join(args.out, "preference_inference.png"))

@@ -276,6 +276,8 @@ def _cmd_train(args) -> int:
     config, run_dir, resume = _resolve_run(args)
     validate(config)
     algorithm = algorithm_of(config)
+    if config.infer_preferences and config.algo == "moiq":
+        return _train_moiq_inferring(config, run_dir, resume, args.seeds)
     if not isinstance(algorithm, Algorithm):  # ADMM: one compiled program of all rounds (seconds), not checkpointed
         from moiq_jax.runlog import RunLog
 
@@ -287,7 +289,7 @@ def _cmd_train(args) -> int:
         log.close()
         last = {name: np.asarray(values)[-1] for name, values in result.history.items()}
         print(f"run directory: {run_dir}")
-        if config.admm.infer_preferences:
+        if config.infer_preferences:
             _print_inferred_preferences(result, run_dir)
             return 0
         print(f"after {rounds} rounds: returns per expert (vector, scalarised) against the optimum")
@@ -307,6 +309,29 @@ def _cmd_train(args) -> int:
         experts = os.path.join(run_dir, "experts.npz")
         sac.save_experts(experts, config, result.best_params.actor)
         print(f"best experts written to {experts}; record demonstrations with `moiq demos --experts {experts}`")
+    return 0
+
+
+def _train_moiq_inferring(config: Config, run_dir: str, resume: bool, seeds: int) -> int:
+    """`moiq train --algo moiq --infer-preferences`: MOIQ in the preference-inference outer loop, one seed,
+    logged per chunk (metrics.csv under the inferred preferences), ``inferred_preferences.json`` written."""
+    from moiq_jax.algos import moiq_preference_inference as inference
+    from moiq_jax.runlog import RunLog
+
+    if resume or seeds > 1:
+        raise ValueError("moiq --infer-preferences trains one seed and is not checkpointed: drop --resume/--seeds "
+                         "(several seeds: moiq_jax.sweep(config, seed=[...]))")
+    print(f"run directory: {run_dir}")
+    result = inference.train_seeds(config, [config.seed], log=print).run(0)
+    steps = np.asarray(result.history["env_steps"])
+    log = RunLog(run_dir, config, total_steps=int(steps[-1]), progress=False, labels=result.preferences)
+    for t, step in enumerate(steps):
+        log.log(int(step), {name: np.asarray(values)[t] for name, values in result.history.items()})
+    log.close()
+    inference.write_run(result, run_dir)
+    print("returns per expert (inferred preference: agent's final vector return, the expert's demonstrated return)")
+    for w, agent, demo in zip(result.preferences, result.history["eval_return"][-1], result.extras["demo_return"]):
+        print(f"  {_format_preference(w):<12} {_format_vector(agent)}   expert {_format_vector(demo)}")
     return 0
 
 

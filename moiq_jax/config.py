@@ -74,11 +74,17 @@ class MOIQConfig:
     beta: float = _field(5.0, "consensus penalty weight (moiq); 0 is the paper's ablation")
     alpha_reg: float = _field(0.5, "IQ-Learn's chi^2 regulariser: phi(x) = x - x^2 / (4 alpha_reg)")
     use_target: bool = _field(True, "V(s') from the target critic (no gradient); False: online critic, as IQ-Learn")
+    preference_warmup_steps: int = _field(50_000, "moiq with infer_preferences: env steps per expert under the "
+                                                  "initial spread preferences before the first preference step")
+    preference_interval: int = _field(10_000, "moiq with infer_preferences: env steps per expert between "
+                                              "preference steps")
 
     def validate(self) -> None:
         if self.beta < 0:
             raise ValueError(f"beta must be non-negative, got {self.beta}")
-        _positive(self, ("alpha_reg",))
+        _positive(self, ("alpha_reg", "preference_interval"))
+        if self.preference_warmup_steps < 0:
+            raise ValueError(f"preference_warmup_steps must be >= 0, got {self.preference_warmup_steps}")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -111,6 +117,7 @@ class PPOConfig:
 
 
 INNER_RL = ("soft_vi", "ppo")
+INFER_PREFERENCES = ("admm", "moiq")  # the algorithms that can infer the experts' preferences
 PREFERENCE_RULES = ("closest", "likelihood")
 
 
@@ -126,8 +133,6 @@ class ADMMConfig:
     reward_bound: float = _field(5.0, "box bound |r_i| <= reward_bound, keeps the x-update finite")
     inner_rl: str = _field("soft_vi", "ADMM's inner RL: soft_vi (exact, fast) or ppo (as in the paper)")
     temperature: float = _field(1.0, "entropy temperature of the max-ent inner RL (soft VI, and PPO's soft reward)")
-    infer_preferences: bool = _field(False, "infer every expert's preference from its demonstrations (their labels "
-                                            "ignored) jointly with the common reward; see algos/preference_inference.py")
     preference_warmup: int = _field(10, "with infer_preferences: rounds under the initial spread preferences before "
                                         "the preference step starts (run before the `rounds` rounds)")
     preference_resolution: int = _field(50, "with infer_preferences: candidate preferences on a simplex grid of this "
@@ -181,6 +186,9 @@ class Config:
     num_demos: int = _field(10, "demonstrations per expert (the first ones of a --demos file)")
     demos: str | None = _field(None, "a Demonstrations file; None: record them from the env's oracle experts")
     seed: int = _field(0, "random seed of the whole run")
+    infer_preferences: bool = _field(False, "infer every expert's preference from its demonstrations (their labels "
+                                            "ignored) jointly with the reward (algo admm: algos/preference_inference.py; "
+                                            "moiq: algos/moiq_preference_inference.py)")
     gamma: float = _field(0.99, "discount factor")
     offpolicy: OffPolicyConfig = dataclasses.field(default_factory=OffPolicyConfig)
     moiq: MOIQConfig = dataclasses.field(default_factory=MOIQConfig)
@@ -234,6 +242,8 @@ class Config:
         envs.spec(self.env)  # unknown env names raise, listing the known ones
         if self.num_demos < 1:
             raise ValueError(f"num_demos must be at least 1, got {self.num_demos}")
+        if self.infer_preferences and self.algo not in INFER_PREFERENCES:
+            raise ValueError(f"infer_preferences runs with algo {' or '.join(INFER_PREFERENCES)}, got {self.algo!r}")
         if not 0.0 <= self.gamma < 1.0:
             raise ValueError(f"gamma must be in [0, 1), got {self.gamma}")
         if self.env_backend is not None and self.env_backend not in envs.backends(self.env):

@@ -16,7 +16,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from moiq_jax.algos import gail, iq_learn, moiq, preference_inference, sac
+from moiq_jax.algos import gail, iq_learn, moiq, moiq_preference_inference, preference_inference, sac
 from moiq_jax.algos.offpolicy import Algorithm, make_trainer
 from moiq_jax.config import Config
 from moiq_jax.experts.demonstrations import Demonstrations
@@ -39,6 +39,8 @@ def algorithm_of(config: Config):
     """The registered algorithm ``config.algo``; unknown names raise, listing the known ones."""
     if config.algo not in ALGORITHMS:
         raise ValueError(f"unknown algo {config.algo!r}; known algorithms: {', '.join(ALGORITHMS)}")
+    if config.algo == "moiq" and config.infer_preferences:  # MOIQ in an outer loop that infers the preferences
+        return moiq_preference_inference.ALGORITHM
     return ALGORITHMS[config.algo]
 
 
@@ -64,6 +66,9 @@ parameters in the config's expert order). ``demos``
     algorithm = algorithm_of(config)
     validate(config)
     if not isinstance(algorithm, Algorithm):
+        if demos is not None:
+            raise ValueError(f"{config.algo}{' inferring preferences' if config.infer_preferences else ''} reads its "
+                             "demonstrations from config.demos (a file) or the oracle experts, not a demos argument")
         return algorithm.train_seeds(config, [config.seed]).run(0)
     trainer = make_trainer(config, algorithm, demos)
 

@@ -259,7 +259,7 @@ def train_seeds(config: Config, seeds) -> Result:
     ``demo_return [E, d]`` (the demonstrations' mean true return) and ``inference`` (the
     ``InferenceResult``, for ``write_run``)."""
     c = config.admm
-    if not c.infer_preferences:
+    if not config.infer_preferences:
         return admm.train_seeds(config, seeds)
     config.validate(sections=ALGORITHM.sections)
     if not config.env.startswith("dst"):
