@@ -1,7 +1,8 @@
-"""A sweep run chunk by chunk (``moiq_jax.sweep``: one jitted, vmapped chunk program called once per
-``eval_interval`` env steps, so that it can checkpoint and resume) against the whole training as one
-jitted program (the sweep's former shape: ``lax.scan`` over the chunks inside one ``jit(vmap(...))``), in
-one run and on the same inputs, the CPU split into one device per run as ``moiq sweep`` does.
+"""A checkpointed sweep (``moiq_jax.sweep(..., run_dir=...)``: one jitted, vmapped chunk program called once
+per ``eval_interval`` env steps, the state saved after each, so that it can resume) against a sweep without a
+run directory (the whole training as one jitted program: ``lax.scan`` over the chunks inside one
+``jit(vmap(...))``), in one run and on the same inputs, the CPU split into one device per run as ``moiq
+sweep`` does.
 
     python benchmarks/sweep_chunks.py [--betas 0 5] [--seeds 2] [--total-steps 6000] [--eval-interval 600]
 
@@ -30,13 +31,10 @@ def main() -> None:
 
     split_cpu_into_devices(runs)
     import jax
-    import jax.numpy as jnp
     import numpy as np
 
     import moiq_jax
     from moiq_jax.config import tuned
-    from moiq_jax.runtime import shard_runs
-    from moiq_jax.train import ALGORITHMS, make_trainer
 
     jax.config.update("jax_compilation_cache_dir", tempfile.mkdtemp(prefix="sweep_chunks_xla"))
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
@@ -44,18 +42,13 @@ def main() -> None:
     seeds = list(range(args.seeds))
 
     def whole_program():
-        """The former sweep: every chunk of every run in one jitted program."""
-        trainer = make_trainer(config, ALGORITHMS["moiq"])
-        grid = [(beta, seed) for beta in args.betas for seed in seeds]
-        keys = jax.vmap(jax.random.PRNGKey)(jnp.asarray([s for _, s in grid], jnp.uint32))
-        hyper = {"beta": jnp.asarray([b for b, _ in grid], jnp.float32)}
-        setup = jax.tree_util.tree_map(lambda x: jnp.stack([x] * len(grid)), trainer.setup)
-        keys, hyper, setup = shard_runs(keys, hyper, setup)
-        _, history = jax.jit(jax.vmap(trainer.train_with))(keys, hyper, setup)
-        return np.asarray(history["eval_return"])
+        """A sweep without a run directory: every chunk of every run in one jitted program."""
+        return moiq_jax.sweep(config, beta=args.betas, seed=seeds, log=None).history["eval_return"]
 
     def chunked():
-        return moiq_jax.sweep(config, beta=args.betas, seed=seeds, log=None).history["eval_return"]
+        """A checkpointed sweep: one chunk program per ``eval_interval``, the state saved after each."""
+        return moiq_jax.sweep(config, run_dir=tempfile.mkdtemp(prefix="sweep_chunks_run"), beta=args.betas,
+                              seed=seeds, log=None).history["eval_return"]
 
     times, returns = {}, {}
     for name, run in (("whole program", whole_program), ("chunk by chunk", chunked)):

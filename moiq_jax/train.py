@@ -114,15 +114,17 @@ def preference_sets(sets, reward_dim: int, demos=None) -> tuple[list[np.ndarray]
 def sweep(config: Config, demos=None, run_dir: str | None = None, resume: bool = False, log=print,
           **values) -> Result:
     """Train every combination of the given values (``seed=[...]``, and the algorithm's hyperparameters,
-    e.g. ``beta=[...]`` for moiq; the config's value for those not given) as one vmapped program, run chunk
-    by chunk (``eval_interval`` env steps each, logged by ``log``), sharded over the run axis when several
-    devices are present and they divide the number of runs (on CPU, ``runtime.split_cpu_into_devices``
-    makes the devices). Returns a ``Result`` with a run axis.
+    e.g. ``beta=[...]`` for moiq; the config's value for those not given) as one vmapped program, sharded
+    over the run axis when several devices are present and they divide the number of runs (on CPU,
+    ``runtime.split_cpu_into_devices`` makes the devices). Returns a ``Result`` with a run axis.
 
-    With ``run_dir``: the sweep's config and values go to ``run_dir/sweep.json``, each run's config and
-    metrics to ``run_dir/<name><value>-...`` (``run_dir_names``), the state of all runs to
-    ``run_dir/checkpoints`` after every chunk; ``resume=True`` continues a sweep cut there (given the same
-    config, values and demos), ending with the same result as an uninterrupted one.
+    Without ``run_dir`` the whole training is one compiled program (the fastest; nothing to resume). With
+    ``run_dir`` it runs chunk by chunk (``eval_interval`` env steps each, logged by ``log``): the sweep's
+    config and values go to ``run_dir/sweep.json``, each run's config and metrics to
+    ``run_dir/<name><value>-...`` (``run_dir_names``), the state of all runs to ``run_dir/checkpoints``
+    after every chunk; ``resume=True`` continues a sweep cut there (given the same config, values and
+    demos), ending with the same result as an uninterrupted checkpointed one. (The two shapes compile to
+    different programs, so their float results are not bit-identical.)
 
     ``preferences=[set_1, set_2, ...]`` also sweeps preference sets of one size (each set's demonstrations
     and preferences are inputs of the program, not constants); ``demos`` is then one ``Demonstrations`` or
@@ -175,6 +177,15 @@ def sweep(config: Config, demos=None, run_dir: str | None = None, resume: bool =
     else:
         runs.pop("set")
         preferences = trainer.preferences
+    if run_dir is None:
+        def one(key, hyper, setup):
+            state, history = trainer.train_with(key, hyper, setup)
+            return (trainer.to_config_order(state.learner.params, 0, setup["back"]),
+                    trainer.to_config_order(state.best_params, 0, setup["back"]), state.best_return, history)
+
+        final, best, best_return, history = jax.jit(jax.vmap(one))(keys, hyper, setup)
+        return Result(config, preferences, jax.device_get(history), final, best, np.asarray(best_return),
+                      time.perf_counter() - start, runs=runs)
     names = run_dir_names(runs)
     each = Result(config, preferences, {}, None, None, np.zeros(len(names)), runs=runs)  # for each run's config
     if run_dir is not None:

@@ -117,7 +117,7 @@ def test_a_sweep_cut_after_a_chunk_resumes_in_python(tmp_path):
     lines = []
     resumed = moiq_jax.sweep(config, run_dir=run_dir, resume=True, log=lines.append, **values)
     assert [line.split("]")[1].split(":")[0] for line in lines] == [" steps 900", " steps 1200"]  # two chunks left
-    whole = moiq_jax.sweep(config, log=None, **values)  # uninterrupted, without checkpoints
+    whole = moiq_jax.sweep(config, run_dir=str(tmp_path / "whole"), log=None, **values)  # uninterrupted
     for name in whole.history:
         assert resumed.history[name].dtype == whole.history[name].dtype, name
         np.testing.assert_array_equal(resumed.history[name], whole.history[name], err_msg=name)
