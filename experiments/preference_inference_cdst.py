@@ -27,6 +27,7 @@ import jax
 import numpy as np
 
 from moiq_jax import envs
+from moiq_jax.algos.preference_inference import learned_interval
 from moiq_jax.runtime import split_cpu_into_devices, use_compilation_cache
 
 PAPER = ((0.9, 0.1), (0.5, 0.5), (0.1, 0.9))
@@ -51,17 +52,10 @@ def true_interval(env, behaviour) -> list[float]:
 
 def actor_interval(behaviour, candidates, point, target) -> list[float] | None:
     """The run of grid candidates around the one nearest ``point`` whose actor behaviour equals ``target``."""
-    same = np.all(behaviour == np.asarray(target), axis=-1)
     index = int(np.argmin(np.abs(candidates[:, 0] - point[0])))
-    if not same[index]:
+    if not np.all(behaviour[index] == np.asarray(target)):
         return None
-    lo = hi = index
-    while lo > 0 and same[lo - 1]:
-        lo -= 1
-    while hi < len(same) - 1 and same[hi + 1]:
-        hi += 1
-    w0 = candidates[:, 0]
-    return [float(min(w0[lo], w0[hi])), float(max(w0[lo], w0[hi]))]
+    return list(learned_interval(behaviour, candidates, index))
 
 
 def main() -> None:

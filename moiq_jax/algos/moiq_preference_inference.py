@@ -22,8 +22,6 @@ The expert axis keeps the start's canonical order throughout (the replay buffers
 
 from __future__ import annotations
 
-import json
-import os
 import time
 from typing import NamedTuple
 
@@ -33,7 +31,7 @@ import numpy as np
 
 from moiq_jax.algos import moiq
 from moiq_jax.algos.offpolicy import make_trainer
-from moiq_jax.algos.preference_evidence import spread_preferences
+from moiq_jax.algos.preference_evidence import save_inferred, spread_preferences
 from moiq_jax.algos.preference_inference import simplex_grid
 from moiq_jax.config import Config
 from moiq_jax.experts.demonstrations import Demonstrations
@@ -197,11 +195,7 @@ def write_run(result: Result, run_dir: str | None = None, log=print) -> dict:
               "share_per_chunk": np.where(np.isnan(share), None, share).tolist()}
     log(f"inferred preferences {np.round(per_chunk[-1], 3).tolist()} (initial spread "
         f"{np.round(record['initial'], 3).tolist()})")
-    if run_dir is not None:
-        os.makedirs(run_dir, exist_ok=True)
-        with open(os.path.join(run_dir, "inferred_preferences.json"), "w") as f:
-            json.dump(record, f, indent=1)
-    return record
+    return save_inferred(record, run_dir)
 
 
 class OuterLoop(NamedTuple):

@@ -109,6 +109,12 @@ def write_run(result, run_dir: str | None = None, log=print, seed_index: int = 0
     }
     log(f"inferred preferences {np.round(per_round[-1], 3).tolist()} (w[0] intervals with the same "
         f"behaviour under the learned reward: {np.round(result.learned_interval[seed_index], 3).tolist()})")
+    return save_inferred(record, run_dir)
+
+
+def save_inferred(record: dict, run_dir: str | None) -> dict:
+    """Write an inference run's ``record`` to ``run_dir/inferred_preferences.json`` (nothing without a
+    ``run_dir``); returns it."""
     if run_dir is not None:
         os.makedirs(run_dir, exist_ok=True)
         with open(os.path.join(run_dir, "inferred_preferences.json"), "w") as f:
