@@ -155,17 +155,22 @@ def plot(summary: dict, path: str) -> None:
                         label="inferred" if s == 0 and e == 0 else None)
                 ax.plot(x["true"][0], y, "|", color="black", markersize=10, label="hidden label" if s == 0 and e == 0
                         else None)
-        ax.set_xlim(-0.02, 1.02)
-        ax.set_xlabel("w[0] (weight of the treasure)")
-        ax.set_yticks(range(len(r["preferences"])))
-        ax.set_yticklabels([str(w) for w in sorted(r["preferences"], key=lambda w: -w[0])], fontsize=7)
-        n = len(r["per_seed"])
+        n = preference_axes(ax, r)
         ax.set_title(f"{env} {name}: treasures match {r['seeds_all_treasures_match_true_reward']}/{n},\n"
                      f"downstream optimal {r['seeds_all_optimal_downstream']}/{n}", fontsize=9)
     axes[0, 0].legend(fontsize=6, loc="lower right")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+def preference_axes(ax, r: dict) -> int:
+    """A panel's axes: w[0] across, one row per expert (largest w[0] first); returns the number of seeds."""
+    ax.set_xlim(-0.02, 1.02)
+    ax.set_xlabel("w[0] (weight of the treasure)")
+    ax.set_yticks(range(len(r["preferences"])))
+    ax.set_yticklabels([str(w) for w in sorted(r["preferences"], key=lambda w: -w[0])], fontsize=7)
+    return len(r["per_seed"])
 
 
 def plot_cdst(ax, r: dict) -> None:
@@ -185,11 +190,7 @@ def plot_cdst(ax, r: dict) -> None:
             ax.plot(x["at_best_evaluation"][0], y, "o" if x["matches_best_evaluation"] else "x", color="tab:red",
                     label="inferred" if first else None)
             ax.plot(x["true"][0], y, "|", color="black", markersize=10, label="hidden label" if first else None)
-    ax.set_xlim(-0.02, 1.02)
-    ax.set_xlabel("w[0] (weight of the treasure)")
-    ax.set_yticks(range(len(r["preferences"])))
-    ax.set_yticklabels([str(w) for w in sorted(r["preferences"], key=lambda w: -w[0])], fontsize=7)
-    n = len(r["per_seed"])
+    n = preference_axes(ax, r)
     ax.set_title(f"cdst MOIQ: all experts' returns {r['seeds_all_match_best_evaluation']}/{n},\n"
                  f"true-reward optimum matches {r['seeds_all_inferred_match_true_reward']}/{n}", fontsize=9)
     ax.legend(fontsize=6, loc="upper right")
