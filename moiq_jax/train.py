@@ -177,25 +177,26 @@ def sweep(config: Config, demos=None, run_dir: str | None = None, resume: bool =
     else:
         runs.pop("set")
         preferences = trainer.preferences
+    def final_and_best(state, back):
+        """One run's final and best parameters, their experts in the config's order."""
+        return (trainer.to_config_order(state.learner.params, 0, back),
+                trainer.to_config_order(state.best_params, 0, back))
+
     if run_dir is None:
         def one(key, hyper, setup):
             state, history = trainer.train_with(key, hyper, setup)
-            return (trainer.to_config_order(state.learner.params, 0, setup["back"]),
-                    trainer.to_config_order(state.best_params, 0, setup["back"]), state.best_return, history)
+            return (*final_and_best(state, setup["back"]), state.best_return, history)
 
         final, best, best_return, history = jax.jit(jax.vmap(one))(keys, hyper, setup)
         return Result(config, preferences, jax.device_get(history), final, best, np.asarray(best_return),
                       time.perf_counter() - start, runs=runs)
     names = run_dir_names(runs)
     each = Result(config, preferences, {}, None, None, np.zeros(len(names)), runs=runs)  # for each run's config
-    if run_dir is not None:
-        _record_sweep(run_dir, config, given_values, demos, _digest(setups), resume)
+    _record_sweep(run_dir, config, given_values, demos, _digest(setups), resume)
     state, history, _ = run_chunks(all_runs(trainer, config, keys, hyper, setup, names,
                                             [each.run(i).config for i in range(len(names))]),
                                    run_dir=run_dir, resume=resume, log=log)
-    in_config_order = jax.jit(jax.vmap(lambda s, back: (trainer.to_config_order(s.learner.params, 0, back),
-                                                        trainer.to_config_order(s.best_params, 0, back))))
-    final, best = in_config_order(state, setup["back"])
+    final, best = jax.jit(jax.vmap(final_and_best))(state, setup["back"])
     history = {name: np.stack([h[name] for h in history], axis=1) for name in history[0]}
     return Result(config, preferences, history, final, best, np.asarray(state.best_return),
                   time.perf_counter() - start, runs=runs)
