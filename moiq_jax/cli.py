@@ -279,14 +279,9 @@ def _cmd_train(args) -> int:
     if config.infer_preferences and config.algo == "moiq":
         return _train_moiq_inferring(config, run_dir, resume, args.seeds)
     if not isinstance(algorithm, Algorithm):  # ADMM: one compiled program of all rounds (seconds), not checkpointed
-        from moiq_jax.runlog import RunLog
-
         result = moiq_jax.train(config)
         rounds = len(result.history["length"])  # with inferred preferences: warm-up rounds too
-        log = RunLog(run_dir, config, total_steps=rounds, progress=False, step_name="round", labels=result.preferences)
-        for r in range(rounds):
-            log.log(r + 1, {name: np.asarray(values)[r] for name, values in result.history.items()})
-        log.close()
+        _write_history(run_dir, config, result, np.arange(1, rounds + 1), step_name="round")
         last = {name: np.asarray(values)[-1] for name, values in result.history.items()}
         print(f"run directory: {run_dir}")
         if config.infer_preferences:
@@ -312,22 +307,29 @@ def _cmd_train(args) -> int:
     return 0
 
 
+def _write_history(run_dir: str, config: Config, result, steps, step_name: str = "env_steps") -> None:
+    """A finished run's history, one row per entry of ``steps``, to ``run_dir``'s metrics.csv and TensorBoard,
+    its experts labelled by ``result.preferences``."""
+    from moiq_jax.runlog import RunLog
+
+    log = RunLog(run_dir, config, total_steps=int(steps[-1]), progress=False, step_name=step_name,
+                 labels=result.preferences)
+    for t, step in enumerate(steps):
+        log.log(int(step), {name: np.asarray(values)[t] for name, values in result.history.items()})
+    log.close()
+
+
 def _train_moiq_inferring(config: Config, run_dir: str, resume: bool, seeds: int) -> int:
     """`moiq train --algo moiq --infer-preferences`: MOIQ in the preference-inference outer loop, one seed,
     logged per chunk (metrics.csv under the inferred preferences), ``inferred_preferences.json`` written."""
     from moiq_jax.algos import moiq_preference_inference as inference
-    from moiq_jax.runlog import RunLog
 
     if resume or seeds > 1:
         raise ValueError("moiq --infer-preferences trains one seed and is not checkpointed: drop --resume/--seeds "
                          "(several seeds: moiq_jax.sweep(config, seed=[...]))")
     print(f"run directory: {run_dir}")
     result = inference.train_seeds(config, [config.seed], log=print).run(0)
-    steps = np.asarray(result.history["env_steps"])
-    log = RunLog(run_dir, config, total_steps=int(steps[-1]), progress=False, labels=result.preferences)
-    for t, step in enumerate(steps):
-        log.log(int(step), {name: np.asarray(values)[t] for name, values in result.history.items()})
-    log.close()
+    _write_history(run_dir, config, result, np.asarray(result.history["env_steps"]))
     inference.write_run(result, run_dir)
     print("returns per expert (inferred preference: agent's final vector return, the expert's demonstrated return)")
     for w, agent, demo in zip(result.preferences, result.history["eval_return"][-1], result.extras["demo_return"]):
