@@ -42,7 +42,7 @@ def gymnasium_returns(env: str, config, actor_params, episodes: int) -> np.ndarr
     act = jax.jit(lambda params, obs, w: nets.act(params, obs[None], w)[0])
     returns = np.zeros((len(config.preferences), episodes, len(columns)))
     for i, preference in enumerate(jnp.asarray(config.preferences, jnp.float32)):
-        params = jax.tree_util.tree_map(lambda x: x[i], actor_params)
+        params = jax.tree_util.tree_map(lambda x, i=i: x[i], actor_params)
         for episode in range(episodes):
             obs, _ = gym_env.reset(seed=episode)
             done = False

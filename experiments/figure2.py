@@ -2,7 +2,7 @@
 model per preference), 10 demonstrations per preference, EWMA (alpha 0.1) of the scalarised evaluation return,
 mean and spread over seeds, with the experts' returns.
 
-    PYTHONPATH=. python experiments/figure2.py [--envs ...] [--seeds 5] [--quick] [--out results/figure2]
+    PYTHONPATH=. python experiments/figure2.py [--envs ...] [--seeds 3] [--protocol cpu|paper] [--quick] [--out DIR]
 
 MOIQ's runs are table1.py's cached sweep; GAIL's (paper_mujoco.gail_config) are cached beside them. Writes
 ``figure2.png`` and ``figure2.json`` (final EWMA return per method and setting).
@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import pathlib
 
 import paper_mujoco as paper
 
@@ -20,18 +19,17 @@ import paper_mujoco as paper
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     paper.add_arguments(parser)
-    parser.add_argument("--out", default="results/figure2")
+    parser.add_argument("--out", help="default: results/mujoco_<protocol>/figure2")
     args = parser.parse_args()
-    out = pathlib.Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    out = paper.out_dir(args, "figure2")
 
     def methods_of(env):
-        gail = paper.task_sweep(env, args, "gail", paper.gail_config(env, args.quick), betas=None)
+        gail = paper.task_sweep(env, args, "gail", paper.gail_config(env, paper.protocol_of(args)), betas=None)
         return {"MOIQ beta=5": paper.learning_curves(paper.task_sweep(env, args), 5.0),
                 "GAIL": paper.learning_curves(gail, None)}
 
     summary = paper.curves_figure(args.envs, methods_of, out / "figure2.png")
-    (out / "figure2.json").write_text(json.dumps({"final_ewma_return": summary}, indent=1))
+    paper.write_outputs(out, "figure2", args, None, final_ewma_return=summary)
     print(json.dumps(summary, indent=1))
 
 

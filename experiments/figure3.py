@@ -1,7 +1,7 @@
 """The paper's Figure 3 on the two-objective MuJoCo tasks: the vector returns of MOIQ's (beta = 5) best models
 for the 19 preferences [1 - 0.05k, 0.05k], beside the experts', with the hypervolume of each.
 
-    PYTHONPATH=. python experiments/figure3.py [--envs ...] [--seeds 5] [--quick] [--out results/figure3]
+    PYTHONPATH=. python experiments/figure3.py [--envs ...] [--seeds 3] [--protocol cpu|paper] [--quick] [--out DIR]
 
 Uses the same cached sweeps as table1.py; writes ``figure3.png``, ``figure3.csv`` (every seed and preference)
 and ``figure3.json`` (hypervolumes). The hypervolume reference point is the component-wise minimum of all the
@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import pathlib
 
 import jax
 import matplotlib
@@ -34,10 +33,9 @@ def main() -> None:
     paper.add_arguments(parser)
     parser.set_defaults(envs=list(TWO_OBJECTIVES))
     parser.add_argument("--episodes", type=int, default=100, help="evaluation episodes per preference")
-    parser.add_argument("--out", default="results/figure3")
+    parser.add_argument("--out", help="default: results/mujoco_<protocol>/figure3")
     args = parser.parse_args()
-    out = pathlib.Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    out = paper.out_dir(args, "figure3")
     episodes = 1 if args.quick else args.episodes
     preferences = preference_sweep(19)
 
@@ -65,8 +63,7 @@ def main() -> None:
         ax.legend(fontsize=7)
     fig.colorbar(points, ax=axes[0].tolist(), label="weight of objective 1")
     fig.savefig(out / "figure3.png", dpi=120)
-    paper.write_csv(out / "figure3.csv", rows)
-    (out / "figure3.json").write_text(json.dumps(summary, indent=1))
+    paper.write_outputs(out, "figure3", args, rows, **summary)
     print(json.dumps(summary, indent=1))
 
 

@@ -2,7 +2,7 @@
 preference) from 1 demonstration per preference, EWMA (alpha 0.1) of the scalarised evaluation return, mean
 and spread over seeds (the paper used 3).
 
-    PYTHONPATH=. python experiments/figure4.py [--envs ...] [--seeds 3] [--quick] [--out results/figure4]
+    PYTHONPATH=. python experiments/figure4.py [--envs ...] [--seeds 3] [--protocol cpu|paper] [--quick] [--out DIR]
 
 Both sweeps are cached beside table1.py's. Writes ``figure4.png`` and ``figure4.json`` (final EWMA return per
 method and setting).
@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import pathlib
 
 import paper_mujoco as paper
 
@@ -21,19 +20,18 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     paper.add_arguments(parser)
     parser.set_defaults(seeds=3)
-    parser.add_argument("--out", default="results/figure4")
+    parser.add_argument("--out", help="default: results/mujoco_<protocol>/figure4")
     args = parser.parse_args()
-    out = pathlib.Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    out = paper.out_dir(args, "figure4")
 
     def methods_of(env):
-        moiq = paper.moiq_config(env, args.quick, num_demos=1, beta=5.0)
+        moiq = paper.moiq_config(env, paper.protocol_of(args), num_demos=1, beta=5.0)
         iq_learn = moiq.replace(algo="iq_learn", beta=0.0)
         return {"MOIQ beta=5": paper.learning_curves(paper.task_sweep(env, args, "moiq-1demo", moiq, (5.0,)), 5.0),
                 "IQ-Learn": paper.learning_curves(paper.task_sweep(env, args, "iq_learn-1demo", iq_learn, None), None)}
 
     summary = paper.curves_figure(args.envs, methods_of, out / "figure4.png", note=", 1 demonstration")
-    (out / "figure4.json").write_text(json.dumps({"final_ewma_return": summary}, indent=1))
+    paper.write_outputs(out, "figure4", args, None, final_ewma_return=summary)
     print(json.dumps(summary, indent=1))
 
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import json
 import pathlib
 import pickle
 
@@ -25,6 +26,7 @@ import moiq_jax
 from moiq_jax.config import Config, tuned
 from moiq_jax.result import Result
 from moiq_jax.runtime import use_compilation_cache
+from moiq_jax.train import SWEEP_FILE, run_grid
 
 ENVS = ("mo-halfcheetah", "mo-hopper", "mo-walker2d", "mo-ant")
 DEMOS = pathlib.Path(__file__).resolve().parent / "demos"
@@ -42,52 +44,84 @@ PAPER_TABLE3 = {"mo-halfcheetah": (0.63, 0.52, 0.19), "mo-hopper": (0.91, 0.1, 0
                 "mo-ant": (0.92, 0.95, 0.86)}
 
 
-def moiq_config(env: str, quick: bool = False, **changes) -> Config:
-    """MOIQ on ``env`` from its committed SAC demonstrations: the paper's settings (Table 5, 500K env steps
-    per expert, evaluations every 5K) with 16 envs per expert and 16 updates per vectorised step, so MJX
-    steps run batched while the updates per env step stay the paper's one; then ``changes``. ``quick``: a
-    CI-sized run."""
-    config = tuned(env, demos=str(DEMOS / f"{env}.npz"), total_steps=499_200, num_envs=16, updates_per_step=16,
-                   learning_starts=4_992, eval_interval=4_992, eval_episodes=10, buffer_size=499_200)
-    if quick:
-        config = config.replace(total_steps=64, eval_interval=64, learning_starts=16, buffer_size=64,
-                                hidden_sizes=(16, 16), batch_size=16, updates_per_step=1, eval_episodes=1)
-    return config.replace(**changes)
+# The two protocols of DESIGN.md ("Backends and protocols"), and the CI smoke size. Both keep the paper's
+# Table 5 (critic lr 3e-4, actor lr 3e-5, tau 0.005, one update per env step per expert) and IQ-Learn's own
+# defaults, which the paper's code builds on and does not override: a fixed temperature 0.01 and V(s') from
+# the online critic. "paper": 500K env steps per expert, 256x256, batch 256, for an accelerator. "cpu": sized
+# so that one MOIQ run of a task fits about 30 minutes of the 2 CPU cores; the pilots that chose it are in
+# results/mujoco_cpu/README.md.
+PROTOCOLS = {
+    "paper": {"total_steps": 499_200, "num_envs": 16, "updates_per_step": 16, "learning_starts": 4_992,
+              "eval_interval": 4_992, "eval_episodes": 10, "buffer_size": 499_200},
+    "cpu": {"hidden_sizes": (128, 128), "batch_size": 128, "total_steps": 100_000, "num_envs": 8,
+            "updates_per_step": 8, "learning_starts": 5_000, "eval_interval": 5_000, "eval_episodes": 5,
+            "buffer_size": 100_000},
+    "quick": {"total_steps": 64, "num_envs": 16, "updates_per_step": 1, "learning_starts": 16, "eval_interval": 64,
+              "eval_episodes": 1, "buffer_size": 64, "hidden_sizes": (16, 16), "batch_size": 16},
+}
+IQ_LEARN_DEFAULTS = {"learn_alpha": False, "init_alpha": 0.01, "use_target": False}
 
 
-def gail_config(env: str, quick: bool = False) -> Config:
-    """GAIL with the paper's Table 4 settings (SAC generator: learning rate 3e-4, tau 0.05, batch 256), one
-    model per preference, on the same demonstrations and env steps as MOIQ."""
-    return moiq_config(env, quick, algo="gail", actor_lr=3e-4, critic_lr=3e-4, disc_lr=3e-4, tau=0.05,
-                       use_target=True, beta=0.0)
+def protocol_of(args) -> str:
+    """The protocol the command line asks for (``--quick`` is the CI smoke size)."""
+    return "quick" if args.quick else args.protocol
+
+
+def moiq_config(env: str, protocol: str = "cpu", **changes) -> Config:
+    """MOIQ on ``env`` from its committed SAC demonstrations under ``protocol`` (``PROTOCOLS``), then
+    ``changes``."""
+    if protocol not in PROTOCOLS:
+        raise ValueError(f"unknown protocol {protocol!r}; choose one of {', '.join(PROTOCOLS)}")
+    return tuned(env, demos=str(DEMOS / f"{env}.npz"), **IQ_LEARN_DEFAULTS, **PROTOCOLS[protocol]).replace(**changes)
+
+
+def gail_config(env: str, protocol: str = "cpu") -> Config:
+    """GAIL with the paper's Table 4 settings (SAC generator: learning rate 3e-4, tau 0.05, batch 256 under
+    the paper's protocol, learnt temperature), one model per preference, on the same demonstrations and env
+    steps as MOIQ."""
+    return moiq_config(env, protocol, algo="gail", actor_lr=3e-4, critic_lr=3e-4, disc_lr=3e-4, tau=0.05,
+                       use_target=True, learn_alpha=True, beta=0.0)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--envs", nargs="+", default=list(ENVS), choices=ENVS)
-    parser.add_argument("--seeds", type=int, default=5)
+    parser.add_argument("--seeds", type=int, default=3)
+    parser.add_argument("--protocol", default="cpu", choices=[p for p in PROTOCOLS if p != "quick"],
+                        help="cpu: sized for the 2-core CPU machine; paper: the paper's (for an accelerator)")
     parser.add_argument("--quick", action="store_true", help="a tiny run of every step (CI smoke test)")
-    parser.add_argument("--cache", default="results/mujoco/sweeps", help="where the sweeps are kept")
+    parser.add_argument("--cache", default="results/mujoco/sweeps",
+                        help="where the sweeps are trained (checkpointed, resumable) and kept, per protocol")
+
+
+def out_dir(args, name: str) -> pathlib.Path:
+    """The output folder of experiment ``name``: ``--out``, else ``results/mujoco_<protocol>/<name>``."""
+    out = pathlib.Path(args.out or f"results/mujoco_{protocol_of(args)}/{name}")
+    out.mkdir(parents=True, exist_ok=True)
+    return out
 
 
 def task_sweep(env: str, args, name: str = "moiq", config: Config | None = None, betas=BETAS) -> Result:
-    """The ``betas`` (None: the algorithm has no beta) x seed sweep ``name`` of ``env`` (``moiq_jax.sweep``'s
-    result; ``config`` defaults to ``moiq_config``), loaded from the cache when a run with the same config
-    and seeds is there, else trained and cached."""
+    """The ``betas`` (None: the algorithm has no beta) x seed sweep ``name`` of ``env`` under the command
+    line's protocol (``config`` defaults to its ``moiq_config``): loaded from the cache when it holds this
+    sweep finished, else trained chunk by chunk in ``<cache>/<protocol>/<env>-<name>``, checkpointed after
+    every evaluation, so that the same command run again after a crash resumes it there."""
     use_compilation_cache()  # each seed's evaluation, and every rerun, loads the same programs
-    config = moiq_config(env, args.quick) if config is None else config
+    protocol = protocol_of(args)
+    config = moiq_config(env, protocol) if config is None else config
     seeds = list(range(2 if args.quick else args.seeds))
-    cache = pathlib.Path(args.cache) / ("quick" if args.quick else "")
-    path = cache / f"{env}-{name}-{config.offpolicy.total_steps}.pkl"
+    cache = pathlib.Path(args.cache) / protocol
+    path = cache / f"{env}-{name}.pkl"
+    values = {"seed": seeds} if betas is None else {"beta": list(betas), "seed": seeds}
     if path.exists():
         cached = pickle.loads(path.read_bytes())
-        if isinstance(cached, Result) and cached.config == config and list(cached.runs["seed"][: len(seeds)]) == seeds:
+        if isinstance(cached, Result) and cached.config == config and all(
+                np.array_equal(cached.runs[name], value) for name, value in run_grid(values).items()):
             return cached
-    values = {"seed": seeds} if betas is None else {"beta": list(betas), "seed": seeds}
-    result = jax.device_get(moiq_jax.sweep(config, **values))
-    cache.mkdir(parents=True, exist_ok=True)
+    run_dir = cache / f"{env}-{name}"  # a sweep of another config or seeds there is an error, not overwritten
+    result = jax.device_get(moiq_jax.sweep(config, run_dir=str(run_dir), resume=(run_dir / SWEEP_FILE).exists(), **values))
     path.write_bytes(pickle.dumps(result))
-    print(f"{env}: trained {name}, {len(betas or [None])} betas x {len(seeds)} seeds in {result.seconds:.0f}s "
-          f"(cached in {path})")
+    print(f"{env}: trained {name} ({protocol} protocol), {len(betas or [None])} betas x {len(seeds)} seeds in "
+          f"{result.seconds:.0f}s (kept in {path})")
     return result
 
 
@@ -156,9 +190,20 @@ def curves_figure(envs, methods_of, path: pathlib.Path, note: str = "") -> dict:
     return summary
 
 
-def write_csv(path: pathlib.Path, rows: list[dict]) -> None:
-    """``rows`` (dicts with the same keys) as a CSV file with a header."""
-    with open(path, "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
-        writer.writeheader()
-        writer.writerows(rows)
+def protocol_record(args) -> dict:
+    """What every output file names: the protocol, its settings and the seeds."""
+    protocol = protocol_of(args)
+    return {"protocol": protocol, "protocol_settings": {**IQ_LEARN_DEFAULTS, **PROTOCOLS[protocol]},
+            "seeds": 2 if args.quick else args.seeds}
+
+
+def write_outputs(out: pathlib.Path, name: str, args, rows: list[dict] | None, **summary) -> None:
+    """``out/<name>.csv`` (``rows``, dicts with the same keys, each with the protocol's name; None: no CSV)
+    and ``out/<name>.json`` (the protocol record, ``summary`` and the rows)."""
+    record = protocol_record(args)
+    if rows:
+        with open(out / f"{name}.csv", "w", newline="") as f:
+            writer = csv.DictWriter(f, fieldnames=[*rows[0], "protocol"])
+            writer.writeheader()
+            writer.writerows({**row, "protocol": record["protocol"]} for row in rows)
+    (out / f"{name}.json").write_text(json.dumps({**record, **summary, **({"rows": rows} if rows else {})}, indent=1))

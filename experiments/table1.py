@@ -1,7 +1,7 @@
 """The paper's Table 1 on the MuJoCo tasks: the best model's return of MOIQ (beta = 5) per task and
 preference, over 100 evaluation episodes and 5 seeds, next to the experts' and the paper's.
 
-    PYTHONPATH=. python experiments/table1.py [--envs mo-hopper ...] [--seeds 5] [--quick] [--out results/table1]
+    PYTHONPATH=. python experiments/table1.py [--envs mo-hopper ...] [--seeds 3] [--protocol cpu|paper] [--quick] [--out DIR]
 
 Trains (or loads from ``--cache``) each task's beta x seed sweep (``paper_mujoco.task_sweep``) and writes
 ``table1.csv`` / ``.json`` and ``table1.png`` (MOIQ / expert per setting) under ``--out``.
@@ -10,8 +10,6 @@ Trains (or loads from ``--cache``) each task's beta x seed sweep (``paper_mujoco
 from __future__ import annotations
 
 import argparse
-import json
-import pathlib
 
 import matplotlib
 import numpy as np
@@ -25,10 +23,9 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     paper.add_arguments(parser)
     parser.add_argument("--episodes", type=int, default=100, help="evaluation episodes per best model")
-    parser.add_argument("--out", default="results/table1")
+    parser.add_argument("--out", help="default: results/mujoco_<protocol>/table1")
     args = parser.parse_args()
-    out = pathlib.Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    out = paper.out_dir(args, "table1")
     episodes = 1 if args.quick else args.episodes
 
     rows = []
@@ -43,9 +40,8 @@ def main() -> None:
                          "moiq_std": round(float(scalar[:, e].std()), 2), "expert": round(float(expert[e]), 2),
                          "ratio_to_expert": round(float(scalar[:, e].mean() / expert[e]), 3),
                          "paper_moiq": paper.PAPER_TABLE1[env][e], "seeds": int(scalar.shape[0]), "episodes": episodes})
-    paper.write_csv(out / "table1.csv", rows)
     reached = sum(r["ratio_to_expert"] >= 0.9 for r in rows)
-    (out / "table1.json").write_text(json.dumps({"rows": rows, "settings_at_90_percent_of_expert": reached}, indent=1))
+    paper.write_outputs(out, "table1", args, rows, settings_at_90_percent_of_expert=reached)
 
     fig, ax = plt.subplots(figsize=(max(6, len(rows)), 3.6), layout="constrained")
     ax.bar(range(len(rows)), [r["ratio_to_expert"] for r in rows], yerr=[r["moiq_std"] / abs(r["expert"]) for r in rows])

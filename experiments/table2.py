@@ -1,7 +1,7 @@
 """The paper's Table 2 on the MuJoCo tasks: MOIQ with beta = 0 against beta = 5, as the EWMA (alpha 0.1)
 of the scalarised evaluation return at the end of training, averaged over seeds.
 
-    PYTHONPATH=. python experiments/table2.py [--envs ...] [--seeds 5] [--quick] [--out results/table2]
+    PYTHONPATH=. python experiments/table2.py [--envs ...] [--seeds 3] [--protocol cpu|paper] [--quick] [--out DIR]
 
 Uses the same cached sweeps as table1.py; writes ``table2.csv`` / ``.json`` and ``table2.png`` (EWMA
 curves of both betas per setting).
@@ -10,8 +10,6 @@ curves of both betas per setting).
 from __future__ import annotations
 
 import argparse
-import json
-import pathlib
 
 import matplotlib
 
@@ -23,10 +21,9 @@ import paper_mujoco as paper
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     paper.add_arguments(parser)
-    parser.add_argument("--out", default="results/table2")
+    parser.add_argument("--out", help="default: results/mujoco_<protocol>/table2")
     args = parser.parse_args()
-    out = pathlib.Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    out = paper.out_dir(args, "table2")
 
     rows, curves = [], {}
     for env in args.envs:
@@ -40,9 +37,8 @@ def main() -> None:
                          "change_percent": round(change, 2), "env_steps": int(steps[-1]),
                          "paper_beta0": paper.PAPER_TABLE2[env][e][0], "paper_beta5": paper.PAPER_TABLE2[env][e][1]})
             curves[(env, e)] = (steps, {beta: curve[:, :, e] for beta, (_, curve) in smoothed.items()})
-    paper.write_csv(out / "table2.csv", rows)
     better = sum(r["beta5"] > r["beta0"] for r in rows)
-    (out / "table2.json").write_text(json.dumps({"rows": rows, "settings_where_beta5_beats_beta0": better}, indent=1))
+    paper.write_outputs(out, "table2", args, rows, settings_where_beta5_beats_beta0=better)
 
     fig, axes = plt.subplots(1, len(curves), figsize=(3.2 * len(curves), 3), layout="constrained", squeeze=False)
     for ax, ((env, e), (steps, by_beta)) in zip(axes[0], curves.items()):

@@ -2,7 +2,7 @@
 the true reward on the experts' demonstrations, scalarised by each expert's preference and per objective, at
 each run's best model, averaged over seeds.
 
-    PYTHONPATH=. python experiments/table3.py [--envs ...] [--seeds 5] [--quick] [--out results/table3]
+    PYTHONPATH=. python experiments/table3.py [--envs ...] [--seeds 3] [--protocol cpu|paper] [--quick] [--out DIR]
 
 Uses the same cached sweeps as table1.py (the correlations are evaluated during training, with the best-model
 choice); writes ``table3.csv`` / ``.json`` and ``table3.png``.
@@ -11,8 +11,6 @@ choice); writes ``table3.csv`` / ``.json`` and ``table3.png``.
 from __future__ import annotations
 
 import argparse
-import json
-import pathlib
 
 import matplotlib
 import numpy as np
@@ -25,10 +23,9 @@ import paper_mujoco as paper
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     paper.add_arguments(parser)
-    parser.add_argument("--out", default="results/table3")
+    parser.add_argument("--out", help="default: results/mujoco_<protocol>/table3")
     args = parser.parse_args()
-    out = pathlib.Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    out = paper.out_dir(args, "table3")
 
     rows = []
     for env in args.envs:
@@ -44,9 +41,8 @@ def main() -> None:
                          "std": round(float(scalar[:, e].std()), 3),
                          "per_objective": np.round(per_objective[:, e].mean(0), 3).tolist(),
                          "paper": paper.PAPER_TABLE3[env][e]})
-    paper.write_csv(out / "table3.csv", rows)
     at_least = sum(r["correlation"] >= r["paper"] for r in rows)
-    (out / "table3.json").write_text(json.dumps({"rows": rows, "settings_at_least_the_papers": at_least}, indent=1))
+    paper.write_outputs(out, "table3", args, rows, settings_at_least_the_papers=at_least)
 
     fig, ax = plt.subplots(figsize=(max(6, len(rows)), 3.4), layout="constrained")
     x = np.arange(len(rows))

@@ -30,9 +30,11 @@ def outputs(tmp_path_factory):
 
 def test_one_sweep_serves_every_script(outputs):
     tmp_path, printed = outputs
-    assert "trained moiq, 2 betas x 2 seeds" in printed["table1.py"]
+    assert "trained moiq (quick protocol), 2 betas x 2 seeds" in printed["table1.py"]
     assert all("trained" not in printed[s] for s in ("table2.py", "table3.py", "figure3.py"))  # read from the cache
-    assert sorted(p.name for p in (tmp_path / "cache" / "quick").iterdir()) == ["mo-halfcheetah-moiq-64.pkl"]
+    kept = tmp_path / "cache" / "quick"
+    assert sorted(p.name for p in kept.iterdir()) == ["mo-halfcheetah-moiq", "mo-halfcheetah-moiq.pkl"]
+    assert (kept / "mo-halfcheetah-moiq" / "sweep.json").exists()  # trained as a checkpointed, resumable sweep
 
 
 def test_tables_and_figure_files(outputs):
@@ -40,9 +42,11 @@ def test_tables_and_figure_files(outputs):
     for name in ("table1", "table2", "table3", "figure3"):
         for ext in ("csv", "json", "png"):
             assert (tmp_path / name / f"{name}.{ext}").stat().st_size > 0
+        assert json.loads((tmp_path / name / f"{name}.json").read_text())["protocol"] == "quick"
     with open(tmp_path / "table1" / "table1.csv") as f:
         rows = list(csv.DictReader(f))
     assert [r["preference"] for r in rows] == ["[0.9, 0.1]", "[0.5, 0.5]", "[0.1, 0.9]"]
+    assert {r["protocol"] for r in rows} == {"quick"}
     for r in rows:  # the ratio is the mean return over the committed experts' return
         assert float(r["ratio_to_expert"]) == pytest.approx(float(r["moiq_mean"]) / float(r["expert"]), rel=0.02, abs=2e-3)
     table2 = json.loads((tmp_path / "table2" / "table2.json").read_text())
