@@ -25,7 +25,7 @@ import matplotlib.pyplot as plt
 import moiq_jax
 from moiq_jax.config import Config, tuned
 from moiq_jax.result import Result
-from moiq_jax.runtime import use_compilation_cache
+from moiq_jax.runtime import split_cpu_into_devices, use_compilation_cache
 from moiq_jax.train import SWEEP_FILE, run_grid
 
 ENVS = ("mo-halfcheetah", "mo-hopper", "mo-walker2d", "mo-ant")
@@ -105,17 +105,18 @@ def task_sweep(env: str, args, name: str = "moiq", config: Config | None = None,
     line's protocol (``config`` defaults to its ``moiq_config``): loaded from the cache when it holds this
     sweep finished, else trained chunk by chunk in ``<cache>/<protocol>/<env>-<name>``, checkpointed after
     every evaluation, so that the same command run again after a crash resumes it there."""
+    seeds = list(range(2 if args.quick else args.seeds))
+    split_cpu_into_devices(len(seeds))  # (before JAX's first computation) each seed's runs on a CPU device of their own
     use_compilation_cache()  # each seed's evaluation, and every rerun, loads the same programs
     protocol = protocol_of(args)
     config = moiq_config(env, protocol) if config is None else config
-    seeds = list(range(2 if args.quick else args.seeds))
     cache = pathlib.Path(args.cache) / protocol
     path = cache / f"{env}-{name}.pkl"
     values = {"seed": seeds} if betas is None else {"beta": list(betas), "seed": seeds}
     if path.exists():
         cached = pickle.loads(path.read_bytes())
         if isinstance(cached, Result) and cached.config == config and all(
-                np.array_equal(cached.runs[name], value) for name, value in run_grid(values).items()):
+                np.array_equal(cached.runs[swept], value) for swept, value in run_grid(values).items()):
             return cached
     run_dir = cache / f"{env}-{name}"  # a sweep of another config or seeds there is an error, not overwritten
     result = jax.device_get(moiq_jax.sweep(config, run_dir=str(run_dir), resume=(run_dir / SWEEP_FILE).exists(), **values))
