@@ -1,4 +1,5 @@
-"""The paper's Figure 2 on the MuJoCo tasks: learning curves of MOIQ (beta = 5, one model) against GAIL (one
+"""The paper's Figure 2 on the MuJoCo tasks: learning curves of MOIQ (one model; the paper's beta =
+5 and this project's) against GAIL (one
 model per preference), 10 demonstrations per preference, EWMA (alpha 0.1) of the scalarised evaluation return,
 mean and spread over seeds, with the experts' returns.
 
@@ -25,7 +26,8 @@ def main() -> None:
 
     def methods_of(env):
         gail = paper.task_sweep(env, args, "gail", paper.gail_config(env, paper.protocol_of(args)), betas=None)
-        return {"MOIQ beta=5": paper.learning_curves(paper.task_sweep(env, args), 5.0),
+        moiq = paper.task_sweep(env, args)
+        return {**{f"MOIQ beta={beta:g}": paper.learning_curves(moiq, beta) for beta in paper.MOIQ_BETAS},
                 "GAIL": paper.learning_curves(gail, None)}
 
     summary = paper.curves_figure(args.envs, methods_of, out / "figure2.png")

@@ -1,4 +1,5 @@
-"""The paper's Figure 3 on the two-objective MuJoCo tasks: the vector returns of MOIQ's (beta = 5) best models
+"""The paper's Figure 3 on the two-objective MuJoCo tasks: the vector returns of MOIQ's best models (each beta of
+``paper_mujoco.MOIQ_BETAS``)
 for the 19 preferences [1 - 0.05k, 0.05k], beside the experts', with the hypervolume of each.
 
     PYTHONPATH=. python experiments/figure3.py [--envs ...] [--seeds 3] [--protocol cpu|paper] [--quick] [--out DIR]
@@ -44,21 +45,25 @@ def main() -> None:
     fig, axes = plt.subplots(1, len(envs), figsize=(5 * len(envs), 4), layout="constrained", squeeze=False)
     for ax, env in zip(axes[0], envs):
         result = paper.task_sweep(env, args)
-        runs = paper.runs_of(result, 5.0)
-        returns = np.stack([moiq_jax.evaluate(jax.tree_util.tree_map(lambda x, r=r: x[r], result.best_params), env,
-                                              preferences, episodes=episodes) for r in runs])  # [seeds, 19, 2]
+        returns = {beta: np.stack([moiq_jax.evaluate(jax.tree_util.tree_map(lambda x, r=r: x[r], result.best_params),
+                                                     env, preferences, episodes=episodes)
+                                   for r in paper.runs_of(result, beta)]) for beta in paper.MOIQ_BETAS}  # [seeds, 19, 2]
         experts = paper.expert_returns(env)
-        reference = np.minimum(returns.reshape(-1, 2).min(0), experts.min(0)) - 1e-6
-        summary[env] = {"hypervolume_per_seed": [round(hypervolume(r, reference), 2) for r in returns],
-                        "expert_hypervolume": round(hypervolume(experts, reference), 2), "reference": reference.tolist()}
-        for s, seed_returns in zip(result.runs["seed"][runs], returns):
-            rows += [{"env": env, "seed": int(s), "preference": np.round(w, 2).tolist(), "vector_return": r.round(2).tolist()}
-                     for w, r in zip(preferences, seed_returns)]
-        mean = returns.mean(0)
-        points = ax.scatter(mean[:, 1], mean[:, 0], c=preferences[:, 0], cmap="viridis", label="MOIQ, 19 preferences")
+        every = np.concatenate([r.reshape(-1, 2) for r in returns.values()] + [experts])
+        reference = every.min(0) - 1e-6
+        summary[env] = {"expert_hypervolume": round(hypervolume(experts, reference), 2), "reference": reference.tolist(),
+                        "hypervolume_per_seed": {f"beta={beta:g}": [round(hypervolume(r, reference), 2) for r in by_seed]
+                                                 for beta, by_seed in returns.items()}}
+        for (beta, by_seed), marker in zip(returns.items(), "os"):
+            for s, seed_returns in zip(result.runs["seed"][paper.runs_of(result, beta)], by_seed):
+                rows += [{"env": env, "beta": beta, "seed": int(s), "preference": np.round(w, 2).tolist(),
+                          "vector_return": r.round(2).tolist()} for w, r in zip(preferences, seed_returns)]
+            mean = by_seed.mean(0)
+            points = ax.scatter(mean[:, 1], mean[:, 0], c=preferences[:, 0], cmap="viridis", marker=marker,
+                                label=f"MOIQ beta={beta:g}, 19 preferences")
         ax.scatter(experts[:, 1], experts[:, 0], marker="*", s=160, c="k", label="experts")
-        ax.set(title=f"{env}\nhypervolume MOIQ {np.mean(summary[env]['hypervolume_per_seed']):.3g}, "
-                     f"experts {summary[env]['expert_hypervolume']:.3g}",
+        volumes = ", ".join(f"{beta} {np.mean(v):.3g}" for beta, v in summary[env]["hypervolume_per_seed"].items())
+        ax.set(title=f"{env}\nhypervolume MOIQ {volumes}, experts {summary[env]['expert_hypervolume']:.3g}",
                xlabel="objective 2 return", ylabel="objective 1 (x velocity) return")
         ax.legend(fontsize=7)
     fig.colorbar(points, ax=axes[0].tolist(), label="weight of objective 1")

@@ -1,4 +1,5 @@
-"""The paper's Figure 4 on the MuJoCo tasks: MOIQ (beta = 5, one model) against IQ-Learn (one model per
+"""The paper's Figure 4 on the MuJoCo tasks: MOIQ (one model; the paper's beta = 5 and this
+project's) against IQ-Learn (one model per
 preference) from 1 demonstration per preference, EWMA (alpha 0.1) of the scalarised evaluation return, mean
 and spread over seeds (the paper used 3).
 
@@ -25,9 +26,10 @@ def main() -> None:
     out = paper.out_dir(args, "figure4")
 
     def methods_of(env):
-        moiq = paper.moiq_config(env, paper.protocol_of(args), num_demos=1, beta=5.0)
+        moiq = paper.moiq_config(env, paper.protocol_of(args), num_demos=1)
         iq_learn = moiq.replace(algo="iq_learn", beta=0.0)
-        return {"MOIQ beta=5": paper.learning_curves(paper.task_sweep(env, args, "moiq-1demo", moiq, (5.0,)), 5.0),
+        sweep = paper.task_sweep(env, args, "moiq-1demo", moiq, paper.MOIQ_BETAS)
+        return {**{f"MOIQ beta={beta:g}": paper.learning_curves(sweep, beta) for beta in paper.MOIQ_BETAS},
                 "IQ-Learn": paper.learning_curves(paper.task_sweep(env, args, "iq_learn-1demo", iq_learn, None), None)}
 
     summary = paper.curves_figure(args.envs, methods_of, out / "figure4.png", note=", 1 demonstration")

@@ -30,15 +30,21 @@ def main() -> None:
         result = paper.task_sweep(env, args)
         smoothed = {beta: paper.learning_curves(result, beta) for beta in paper.BETAS}  # (steps, [seeds, evals, E])
         steps = smoothed[5.0][0]
+        project = paper.PROJECT_BETA
         for e, w in enumerate(result.config.preferences):
             final = {beta: float(curve[:, -1, e].mean()) for beta, (_, curve) in smoothed.items()}
             change = 100 * (final[5.0] - final[0.0]) / abs(final[0.0])
             rows.append({"env": env, "preference": list(w), "beta0": round(final[0.0], 2), "beta5": round(final[5.0], 2),
-                         "change_percent": round(change, 2), "env_steps": int(steps[-1]),
+                         "change_percent": round(change, 2), f"beta{project:g}": round(final[project], 2),
+                         f"change_percent_beta{project:g}": round(100 * (final[project] - final[0.0]) / abs(final[0.0]), 2),
+                         "env_steps": int(steps[-1]),
                          "paper_beta0": paper.PAPER_TABLE2[env][e][0], "paper_beta5": paper.PAPER_TABLE2[env][e][1]})
             curves[(env, e)] = (steps, {beta: curve[:, :, e] for beta, (_, curve) in smoothed.items()})
     better = sum(r["beta5"] > r["beta0"] for r in rows)
-    paper.write_outputs(out, "table2", args, rows, settings_where_beta5_beats_beta0=better)
+    project = f"beta{paper.PROJECT_BETA:g}"
+    better_project = sum(r[project] > r["beta0"] for r in rows)
+    paper.write_outputs(out, "table2", args, rows, settings_where_beta5_beats_beta0=better,
+                        **{f"settings_where_{project}_beats_beta0": better_project})
 
     fig, axes = plt.subplots(1, len(curves), figsize=(3.2 * len(curves), 3), layout="constrained", squeeze=False)
     for ax, ((env, e), (steps, by_beta)) in zip(axes[0], curves.items()):
@@ -50,11 +56,12 @@ def main() -> None:
     axes[0][0].legend()
     fig.savefig(out / "table2.png", dpi=120)
 
-    print(f"{'env':<15} {'preference':<18} {'beta=0':>9} {'beta=5':>9} {'change':>8}   paper: beta=0 beta=5")
+    print(f"{'env':<15} {'preference':<18} {'beta=0':>9} {'beta=5':>9} {'change':>8} {project:>9} {'change':>8}"
+          "   paper: beta=0 beta=5")
     for r in rows:
         print(f"{r['env']:<15} {r['preference']!s:<18} {r['beta0']:9.1f} {r['beta5']:9.1f} {r['change_percent']:7.1f}%"
-              f"   {r['paper_beta0']:>12} {r['paper_beta5']:>6}")
-    print(f"beta = 5 beats beta = 0 in {better} of {len(rows)} settings (paper: 10 of 15)")
+              f" {r[project]:9.1f} {r['change_percent_' + project]:7.1f}%   {r['paper_beta0']:>12} {r['paper_beta5']:>6}")
+    print(f"beta = 5 beats beta = 0 in {better} of {len(rows)} settings (paper: 10 of 15); {project}: {better_project}")
 
 
 if __name__ == "__main__":

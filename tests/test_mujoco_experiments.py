@@ -30,7 +30,7 @@ def outputs(tmp_path_factory):
 
 def test_one_sweep_serves_every_script(outputs):
     tmp_path, printed = outputs
-    assert "trained moiq (quick protocol), 2 betas x 2 seeds" in printed["table1.py"]
+    assert "trained moiq (quick protocol), 3 betas x 2 seeds" in printed["table1.py"]
     assert all("trained" not in printed[s] for s in ("table2.py", "table3.py", "figure3.py"))  # read from the cache
     kept = tmp_path / "cache" / "quick"
     assert sorted(p.name for p in kept.iterdir()) == ["mo-halfcheetah-moiq", "mo-halfcheetah-moiq.pkl"]
@@ -45,7 +45,8 @@ def test_tables_and_figure_files(outputs):
         assert json.loads((tmp_path / name / f"{name}.json").read_text())["protocol"] == "quick"
     with open(tmp_path / "table1" / "table1.csv") as f:
         rows = list(csv.DictReader(f))
-    assert [r["preference"] for r in rows] == ["[0.9, 0.1]", "[0.5, 0.5]", "[0.1, 0.9]"]
+    assert [(r["beta"], r["preference"]) for r in rows] == [(beta, w) for beta in ("5.0", "0.5")
+                                                            for w in ("[0.9, 0.1]", "[0.5, 0.5]", "[0.1, 0.9]")]
     assert {r["protocol"] for r in rows} == {"quick"}
     for r in rows:  # the ratio is the mean return over the committed experts' return
         assert float(r["ratio_to_expert"]) == pytest.approx(float(r["moiq_mean"]) / float(r["expert"]), rel=0.02, abs=2e-3)
@@ -54,4 +55,4 @@ def test_tables_and_figure_files(outputs):
     table3 = json.loads((tmp_path / "table3" / "table3.json").read_text())
     assert all(-1 <= r["correlation"] <= 1 and len(r["per_objective"]) == 2 for r in table3["rows"])
     figure3 = json.loads((tmp_path / "figure3" / "figure3.json").read_text())["mo-halfcheetah"]
-    assert len(figure3["hypervolume_per_seed"]) == 2 and figure3["expert_hypervolume"] > 0
+    assert [len(v) for v in figure3["hypervolume_per_seed"].values()] == [2, 2] and figure3["expert_hypervolume"] > 0
