@@ -5,6 +5,7 @@ import csv
 import json
 import os
 import pathlib
+import shutil
 import subprocess
 import sys
 
@@ -16,7 +17,7 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 def run(script, tmp_path):
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     out = subprocess.run([sys.executable, str(ROOT / "experiments" / script), "--quick", "--envs", "mo-halfcheetah",
-                          "--cache", str(tmp_path / "cache"), "--out", str(tmp_path / script[:-3])],
+                          "--cache", str(tmp_path / "cache"), "--out", str(tmp_path / "mujoco_quick" / script[:-3])],
                          capture_output=True, text=True, timeout=900, env=env, check=False)
     assert out.returncode == 0, out.stderr[-3000:]
     return out.stdout
@@ -41,18 +42,41 @@ def test_tables_and_figure_files(outputs):
     tmp_path, _ = outputs
     for name in ("table1", "table2", "table3", "figure3"):
         for ext in ("csv", "json", "png"):
-            assert (tmp_path / name / f"{name}.{ext}").stat().st_size > 0
-        assert json.loads((tmp_path / name / f"{name}.json").read_text())["protocol"] == "quick"
-    with open(tmp_path / "table1" / "table1.csv") as f:
+            assert (tmp_path / "mujoco_quick" / name / f"{name}.{ext}").stat().st_size > 0
+        assert json.loads((tmp_path / "mujoco_quick" / name / f"{name}.json").read_text())["protocol"] == "quick"
+    with open(tmp_path / "mujoco_quick" / "table1" / "table1.csv") as f:
         rows = list(csv.DictReader(f))
     assert [(r["beta"], r["preference"]) for r in rows] == [(beta, w) for beta in ("5.0", "0.5")
                                                             for w in ("[0.9, 0.1]", "[0.5, 0.5]", "[0.1, 0.9]")]
     assert {r["protocol"] for r in rows} == {"quick"}
     for r in rows:  # the ratio is the mean return over the committed experts' return
         assert float(r["ratio_to_expert"]) == pytest.approx(float(r["moiq_mean"]) / float(r["expert"]), rel=0.02, abs=2e-3)
-    table2 = json.loads((tmp_path / "table2" / "table2.json").read_text())
+    table2 = json.loads((tmp_path / "mujoco_quick" / "table2" / "table2.json").read_text())
     assert table2["settings_where_beta5_beats_beta0"] == sum(r["beta5"] > r["beta0"] for r in table2["rows"])
-    table3 = json.loads((tmp_path / "table3" / "table3.json").read_text())
+    table3 = json.loads((tmp_path / "mujoco_quick" / "table3" / "table3.json").read_text())
     assert all(-1 <= r["correlation"] <= 1 and len(r["per_objective"]) == 2 for r in table3["rows"])
-    figure3 = json.loads((tmp_path / "figure3" / "figure3.json").read_text())["mo-halfcheetah"]
+    figure3 = json.loads((tmp_path / "mujoco_quick" / "figure3" / "figure3.json").read_text())["mo-halfcheetah"]
     assert [len(v) for v in figure3["hypervolume_per_seed"].values()] == [2, 2] and figure3["expert_hypervolume"] > 0
+
+
+def test_paper_summary_reads_every_table(outputs):
+    """paper_summary.py assembles Tables 1-3 from the committed cdst results and the MuJoCo outputs, with the
+    paper's numbers and per row whether its claim holds, judged from the numbers in that row."""
+    tmp_path, _ = outputs
+    shutil.copytree(ROOT / "results" / "cdst_moiq", tmp_path / "cdst_moiq")
+    out = subprocess.run([sys.executable, str(ROOT / "experiments" / "paper_summary.py"), "--results", str(tmp_path),
+                          "--out", str(tmp_path / "paper")], capture_output=True, text=True, timeout=300,
+                         env={**os.environ, "PYTHONPATH": str(ROOT)}, check=False)
+    assert out.returncode == 0, out.stderr[-3000:]
+    with open(tmp_path / "paper" / "table1.csv") as f:
+        table1 = list(csv.DictReader(f))
+    assert [(r["env"], r["protocol"]) for r in table1] == [("cdst", "cdst_moiq")] * 6 + [("mo-halfcheetah", "quick")] * 6
+    cdst = {(r["preference"], r["beta"]): r for r in table1 if r["env"] == "cdst"}
+    assert float(cdst[("[0.9, 0.1]", "0.5")]["moiq"]) == 19.03 and cdst[("[0.9, 0.1]", "0.5")]["claim_holds"] == "True"
+    assert float(cdst[("[0.1, 0.9]", "5.0")]["moiq"]) < -0.83 and float(cdst[("[0.1, 0.9]", "5.0")]["paper_moiq"]) == -1.73
+    for r in table1:  # within 10% of the expert, judged on the difference (negative returns included)
+        holds = float(r["moiq"]) >= float(r["expert"]) - 0.1 * abs(float(r["expert"]))
+        assert r["claim_holds"] == str(holds)
+    with open(tmp_path / "paper" / "table3.csv") as f:
+        assert all(r["claim_holds"] == str(float(r["correlation"]) >= float(r["paper"])) for r in csv.DictReader(f))
+    assert "## Table 2" in (tmp_path / "paper" / "summary.md").read_text()
