@@ -133,6 +133,12 @@ def task_sweep(env: str, args, name: str = "moiq", config: Config | None = None,
     return result
 
 
+def near_expert(value: float, expert: float) -> bool:
+    """Whether a return is within 10% of the expert's, ``value >= expert - 0.1 |expert|`` (the 90% line of
+    Table 1, judged on the difference so that negative expert returns are judged right)."""
+    return bool(value >= expert - 0.1 * abs(expert))
+
+
 def learning_curves(result: Result, beta: float | None) -> tuple[np.ndarray, np.ndarray]:
     """``(env steps per expert [evals], EWMA scalarised evaluation returns [seeds, evals, E])`` of the
     ``beta`` runs of a sweep (one model, or one per expert: the steps are the same)."""
