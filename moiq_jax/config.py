@@ -47,10 +47,6 @@ class OffPolicyConfig:
     learn_alpha: bool = _field(True, "learn the entropy temperature (SAC's loss); else keep init_alpha")
     eval_interval: int = _field(5_000, "env steps per expert between evaluations (and best-model checks)")
     eval_episodes: int = _field(1, "episodes per evaluation (cdst and its experts are deterministic: one suffices)")
-    absorbing_until_time_limit: bool = _field(
-        True, "learners from demonstrations: after a termination, rollouts stay in the absorbing state until the "
-              "time limit (paper sec. 4.1.1, fixed-length episodes); else one step there, then a new episode "
-              "(Kostrikov et al.'s replay)")
 
     def __post_init__(self):
         object.__setattr__(self, "hidden_sizes", tuple(int(h) for h in self.hidden_sizes))

@@ -106,26 +106,3 @@ def test_num_demos_takes_the_first_episodes_of_a_demos_file(tmp_path):
     np.testing.assert_array_equal(one.actions[:, 0], source.actions[:, 0])
     with pytest.raises(ValueError, match="hold 4 episodes per expert, fewer than num_demos = 5"):
         load_demonstrations(config.replace(num_demos=5))
-
-
-@pytest.mark.parametrize("until_time_limit", [True, False])
-def test_rollouts_fill_the_replay_with_absorbing_steps_only_when_asked(until_time_limit):
-    """Random hoppers fall within a few dozen steps: staying absorbed until the time limit makes most replay
-    rows self-loops in the absorbing state; one absorbing step per fall keeps exactly one per termination."""
-    config = moiq_jax.Config(env="mo-hopper", preferences=((0.8, 0.1, 0.1), (0.1, 0.8, 0.1), (0.1, 0.1, 0.8)),
-                             demos="experiments/demos/mo-hopper.npz", num_demos=1, total_steps=400, num_envs=4,
-                             learning_starts=400, eval_interval=400, eval_episodes=1, batch_size=8, hidden_sizes=(8,),
-                             buffer_size=400, absorbing_until_time_limit=until_time_limit)
-    trainer = make_trainer(config, ALGORITHMS["moiq"])
-    state = trainer.init(jax.random.PRNGKey(0))
-    state, _ = jax.jit(trainer.run_chunk)(state, trainer.hyper)
-    absorbed_obs = np.asarray(state.buffers.data["obs"][..., -1]) == 1.0  # [experts, rows]
-    absorbed_next = np.asarray(state.buffers.data["next_obs"][..., -1]) == 1.0
-    falls = (absorbed_next & ~absorbed_obs).sum(1)  # moves from a live state into the absorbing one
-    loops = (absorbed_obs & absorbed_next).sum(1)  # self-loops in the absorbing state
-    assert not np.any(absorbed_obs & ~absorbed_next)  # nothing leaves the absorbing state
-    assert np.all(falls >= 4)  # every expert's four envs fell at least once
-    if until_time_limit:
-        assert np.all(loops > 200)  # most of the 400 rows
-    else:  # one self-loop per fall (but the last falls of a chunk, whose self-loop is still to come)
-        assert np.all((loops <= falls) & (loops >= falls - 4)) and np.all(loops < 40)

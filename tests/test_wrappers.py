@@ -57,21 +57,6 @@ def test_absorbing_state_is_left_untouched_by_later_actions():
     np.testing.assert_array_equal(states.reward[1:], np.zeros((20, 2)))
 
 
-def test_one_absorbing_step_ends_the_episode_after_one_self_loop():
-    env = envs.AutoReset(envs.OneAbsorbingStep(envs.make("dst", absorbing=True)))
-    actions = jnp.array([RIGHT, DOWN, DOWN, 0, RIGHT, DOWN, DOWN, 0], jnp.int32)  # the 8.2 treasure at step 3, twice
-    states = run(env, actions)
-    # Step 3 moves to the absorbing state (not an episode end); step 4, its one self-loop, ends the episode
-    # (truncated, never done) with the absorbing observation as final_obs and zero reward; then a new episode.
-    assert not np.any(states.done)
-    np.testing.assert_array_equal(states.truncated, [False, False, False, True] * 2)
-    np.testing.assert_array_equal(states.reward[:4], np.float32([[0, -1], [0, -1], [8.2, -1], [0, 0]]))
-    np.testing.assert_array_equal(states.info["final_obs"][2:4], np.tile([0.0, 0.0, 1.0], (2, 1)))
-    np.testing.assert_array_equal(states.obs[3], [0, 0, 0])  # the new episode's start
-    np.testing.assert_array_equal(states.info["steps"], [1, 2, 3, 0] * 2)
-    np.testing.assert_array_equal(states.reward[4:], states.reward[:4])
-
-
 def test_auto_reset_starts_a_new_episode_and_keeps_the_final_observation():
     env = envs.AutoReset(envs.make("dst", episode_length=5))
     states = run(env, jnp.array([DOWN] + [0] * 7, jnp.int32))  # treasure 0.7 at step 1, then 5-step limits

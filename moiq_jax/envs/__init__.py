@@ -4,7 +4,7 @@ from moiq_jax.envs.base import Env, State, Wrapper
 from moiq_jax.envs.cdst import ContinuousDeepSeaTreasure
 from moiq_jax.envs.dst import CONCAVE_MAP, CONVEX_MAP, MINI_MAP, DeepSeaTreasure, SeaMap
 from moiq_jax.envs.registry import EnvSpec, backends, default_backend, make, register, registered, spec
-from moiq_jax.envs.wrappers import AbsorbingState, AutoReset, OneAbsorbingStep, TimeLimit, VmapWrapper
+from moiq_jax.envs.wrappers import AbsorbingState, AutoReset, TimeLimit, VmapWrapper
 
 __all__ = [
     "CONCAVE_MAP",
@@ -16,7 +16,6 @@ __all__ = [
     "DeepSeaTreasure",
     "Env",
     "EnvSpec",
-    "OneAbsorbingStep",
     "SeaMap",
     "State",
     "TimeLimit",

@@ -1,7 +1,7 @@
 """Env wrappers: time limit, absorbing state, auto-reset and batching.
 
 The usual stack is ``VmapWrapper(AutoReset(TimeLimit(AbsorbingState(env))))``; ``make`` builds the inner
-two, trainers add the outer two (and ``OneAbsorbingStep`` between, when asked).
+two, trainers add the outer two.
 """
 
 from __future__ import annotations
@@ -75,17 +75,6 @@ class AbsorbingState(Wrapper):
             done=jnp.zeros_like(nxt.done),
             info={**nxt.info, "absorbed": absorbed},
         )
-
-
-class OneAbsorbingStep(Wrapper):
-    """Ends an episode of an ``AbsorbingState`` env (as truncated, not done) after its first step inside the
-    absorbing state, so that a rollout records each termination's move to the absorbing state and one
-    self-loop there, as Kostrikov et al.'s replay does, instead of self-loops until the time limit: the
-    absorbing state's reward is still learnt, but falls no longer fill the replay and use up env steps."""
-
-    def step(self, state, action):
-        nxt = self.env.step(state, action)
-        return nxt.replace(truncated=nxt.truncated | state.info["absorbed"])
 
 
 class AutoReset(Wrapper):
