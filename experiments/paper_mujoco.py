@@ -164,6 +164,16 @@ def best_model_returns(result: Result, beta: float, episodes: int) -> np.ndarray
                      for r in runs_of(result, beta)])
 
 
+def best_model_correlations(result: Result, beta: float) -> tuple[np.ndarray, np.ndarray]:
+    """``([seeds, E], [seeds, E, d])`` the recovered reward's Pearson correlations with the true one on the
+    demonstrations (scalarised, and per objective) at each ``beta`` run's best model
+    (``moiq_jax.reward_correlations``)."""
+    per_run = [moiq_jax.reward_correlations(jax.tree_util.tree_map(lambda x, r=r: x[r], result.best_params), result.config)
+               for r in runs_of(result, beta)]
+    return (np.stack([c["reward_correlation"] for c in per_run]),
+            np.stack([c["reward_correlation_objectives"] for c in per_run]))
+
+
 def expert_returns(env: str) -> np.ndarray:
     """``[E, d]`` the committed demonstrations' mean vector returns."""
     return moiq_jax.Demonstrations.load(DEMOS / f"{env}.npz").mean_returns()

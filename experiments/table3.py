@@ -4,8 +4,9 @@ preference and per objective, at each run's best model, averaged over seeds.
 
     PYTHONPATH=. python experiments/table3.py [--envs ...] [--seeds 3] [--protocol cpu|paper] [--quick] [--out DIR]
 
-Uses the same cached sweeps as table1.py (the correlations are evaluated during training, with the best-model
-choice); writes ``table3.csv`` / ``.json`` and ``table3.png``.
+Uses the same cached sweeps as table1.py and computes the correlations at each run's best model
+(``moiq_jax.reward_correlations``, the reward of the critic loss: V(s') from the online critic under both
+protocols); writes ``table3.csv`` / ``.json`` and ``table3.png``.
 """
 
 from __future__ import annotations
@@ -31,12 +32,7 @@ def main() -> None:
     for env in args.envs:
         result = paper.task_sweep(env, args)
         for beta in paper.MOIQ_BETAS:
-            runs = paper.runs_of(result, beta)
-            history = {k: np.asarray(v)[runs] for k, v in result.history.items()}
-            best = np.argmax(history["eval_scalar_return"].mean(-1), axis=1)  # each run's best evaluation
-            seed_rows = np.arange(len(runs))
-            scalar = history["reward_correlation"][seed_rows, best]  # [seeds, E]
-            per_objective = history["reward_correlation_objectives"][seed_rows, best]  # [seeds, E, d]
+            scalar, per_objective = paper.best_model_correlations(result, beta)  # [seeds, E], [seeds, E, d]
             for e, w in enumerate(result.config.preferences):
                 rows.append({"env": env, "preference": list(w), "beta": beta,
                              "correlation": round(float(scalar[:, e].mean()), 3), "std": round(float(scalar[:, e].std()), 3),

@@ -5,7 +5,8 @@ from moiq_jax.config import Config
 from moiq_jax.evaluate import episode_returns, evaluate
 from moiq_jax.experts import Demonstrations
 from moiq_jax.result import Result
-from moiq_jax.train import sweep, train
+from moiq_jax.train import reward_correlations, sweep, train
 
 __version__ = "0.1.0"
-__all__ = ["Config", "Demonstrations", "Result", "envs", "episode_returns", "evaluate", "sweep", "train"]
+__all__ = ["Config", "Demonstrations", "Result", "envs", "episode_returns", "evaluate", "reward_correlations", "sweep",
+           "train"]

@@ -55,6 +55,36 @@ def test_iq_learn_trains_one_model_per_expert_without_penalty(demos):
     assert result.final_params.log_alpha.shape == (3, 1)  # three models of one expert each
 
 
+def _best_evaluation(result):
+    return int(np.argmax(result.history["eval_scalar_return"].mean(1)))
+
+
+def _with_target_moved(params):
+    return params.replace(target_critic=jax.tree_util.tree_map(lambda x: 1.5 * x, params.target_critic))
+
+
+def test_reward_correlations_of_trained_params_use_the_critic_losss_own_reward(trained, demos):
+    """The correlations recomputed from the best model match the ones recorded at its evaluation (up to the
+    sampled actions of V(s')); V(s') comes from the target critic exactly when the config says so."""
+    config = TINY.replace(action_scale=1.1)  # trained: moiq, V(s') from the target critic
+    correlations = moiq_jax.reward_correlations(trained.best_params, config, demos)
+    best = _best_evaluation(trained)
+    assert correlations["reward_correlation"].shape == (3,) and correlations["reward_correlation_objectives"].shape == (3, 2)
+    np.testing.assert_allclose(correlations["reward_correlation"], trained.history["reward_correlation"][best], atol=0.15)
+    moved = moiq_jax.reward_correlations(_with_target_moved(trained.best_params), config, demos)
+    assert np.max(np.abs(moved["reward_correlation"] - correlations["reward_correlation"])) > 0.1
+
+    online = TINY.replace(algo="iq_learn", use_target=False)  # one model per expert, V(s') from the online critic
+    result = moiq_jax.train(online, demos, log=None)
+    correlations = moiq_jax.reward_correlations(result.best_params, online, demos)
+    np.testing.assert_allclose(correlations["reward_correlation"],
+                               result.history["reward_correlation"][_best_evaluation(result)], atol=0.15)
+    moved = moiq_jax.reward_correlations(_with_target_moved(result.best_params), online, demos)
+    np.testing.assert_array_equal(moved["reward_correlation"], correlations["reward_correlation"])
+    with pytest.raises(ValueError, match="gail does not recover its reward from the critic"):
+        moiq_jax.reward_correlations(result.best_params, TINY.replace(algo="gail"), demos)
+
+
 def test_validate_rejects_negative_beta():
     with pytest.raises(ValueError, match="beta"):
         validate(TINY.replace(beta=-1.0))

@@ -118,11 +118,13 @@ def critic_loss(critic_params, nets: Networks, params: Params, batches, preferen
 def reward_correlations(config, nets: Networks):
     """At each evaluation: the recovered reward's Pearson correlations with the true one on the
     demonstrations, scalarised by the expert's preference (``reward_correlation``) and per objective
-    (``reward_correlation_objectives``, ``[E, d]``)."""
+    (``reward_correlation_objectives``, ``[E, d]``); the reward is the critic loss's own, with V(s') from the
+    target critic only when ``use_target``."""
 
     def metrics(params, extra, expert_data, prefs, key):
         def correlation(data_i, preference, alpha, k):
-            rewards, _ = recovered_rewards(nets, params.critic, params, alpha, data_i, preference, k, config.gamma)
+            rewards, _ = recovered_rewards(nets, params.critic, params, alpha, data_i, preference, k, config.gamma,
+                                           config.moiq.use_target)
             rewards = jnp.mean(rewards, 0)  # over the twins
             per_objective = jax.vmap(pearson, in_axes=(1, 1))(rewards, data_i["true_reward"])
             return pearson(rewards @ preference, data_i["true_reward"] @ preference), per_objective
