@@ -47,6 +47,9 @@ class OffPolicyConfig:
     learn_alpha: bool = _field(True, "learn the entropy temperature (SAC's loss); else keep init_alpha")
     eval_interval: int = _field(5_000, "env steps per expert between evaluations (and best-model checks)")
     eval_episodes: int = _field(1, "episodes per evaluation (cdst and its experts are deterministic: one suffices)")
+    absorbing_rollouts: bool = _field(
+        True, "learners from demonstrations: after a termination, rollouts go on in the absorbing state to the time "
+              "limit (its reward learnt; paper sec. 4.1.1); else the episode ends there, V(s') = 0 (IQ-Learn's code)")
 
     def __post_init__(self):
         object.__setattr__(self, "hidden_sizes", tuple(int(h) for h in self.hidden_sizes))

@@ -136,3 +136,24 @@ def test_num_demos_takes_the_first_episodes_of_a_demos_file(tmp_path):
     np.testing.assert_array_equal(one.actions[:, 0], source.actions[:, 0])
     with pytest.raises(ValueError, match="hold 4 episodes per expert, fewer than num_demos = 5"):
         load_demonstrations(config.replace(num_demos=5))
+
+
+@pytest.mark.parametrize("absorbing_rollouts", [True, False])
+def test_rollouts_go_on_in_the_absorbing_state_only_when_asked(absorbing_rollouts):
+    """Random hoppers fall within a few dozen steps: rollouts that go on in the absorbing state fill most of
+    the replay with its self-loops; rollouts that end at termination hold none, and a done per fall."""
+    config = moiq_jax.Config(env="mo-hopper", preferences=((0.8, 0.1, 0.1), (0.1, 0.8, 0.1), (0.1, 0.1, 0.8)),
+                             demos="experiments/demos/mo-hopper.npz", num_demos=1, total_steps=400, num_envs=4,
+                             learning_starts=400, eval_interval=400, eval_episodes=1, batch_size=8, hidden_sizes=(8,),
+                             buffer_size=400, absorbing_rollouts=absorbing_rollouts)
+    trainer = make_trainer(config, ALGORITHMS["moiq"])
+    state, _ = jax.jit(trainer.run_chunk)(trainer.init(jax.random.PRNGKey(0)), trainer.hyper)
+    data = jax.tree_util.tree_map(np.asarray, state.buffers.data)
+    absorbed, absorbed_next, done = data["obs"][..., -1] == 1, data["next_obs"][..., -1] == 1, data["done"] == 1
+    falls = (absorbed_next & ~absorbed).sum(1)  # [experts]: moves from a live state into the absorbing one
+    assert np.all(falls >= 4)  # every expert's four envs fell at least once
+    if absorbing_rollouts:
+        assert not np.any(done) and np.all(absorbed.sum(1) > 200)  # most of the 400 rows are self-loops
+    else:
+        assert not np.any(absorbed)
+        np.testing.assert_array_equal(done, absorbed_next)  # done exactly on the falls

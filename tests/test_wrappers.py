@@ -57,6 +57,19 @@ def test_absorbing_state_is_left_untouched_by_later_actions():
     np.testing.assert_array_equal(states.reward[1:], np.zeros((20, 2)))
 
 
+def test_done_on_absorption_ends_the_episode_at_termination():
+    env = envs.AutoReset(envs.DoneOnAbsorption(envs.make("dst", absorbing=True)))
+    actions = jnp.array([RIGHT, DOWN, DOWN, RIGHT, DOWN, DOWN], jnp.int32)  # the 8.2 treasure at step 3, twice
+    states = run(env, actions)
+    # The terminating step is done, pays the treasure and ends the episode: no step in the absorbing state.
+    np.testing.assert_array_equal(states.done, [False, False, True] * 2)
+    assert not np.any(states.truncated)
+    np.testing.assert_array_equal(states.reward[:3], np.float32([[0, -1], [0, -1], [8.2, -1]]))
+    np.testing.assert_array_equal(states.reward[3:], states.reward[:3])
+    np.testing.assert_array_equal(states.obs[2], [0, 0, 0])  # the new episode's start (flag kept, 0)
+    np.testing.assert_array_equal(states.info["steps"], [1, 2, 0] * 2)
+
+
 def test_auto_reset_starts_a_new_episode_and_keeps_the_final_observation():
     env = envs.AutoReset(envs.make("dst", episode_length=5))
     states = run(env, jnp.array([DOWN] + [0] * 7, jnp.int32))  # treasure 0.7 at step 1, then 5-step limits

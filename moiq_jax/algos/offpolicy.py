@@ -29,7 +29,7 @@ from flax import struct
 from moiq_jax import replay
 from moiq_jax.algos import actor_critic
 from moiq_jax.config import Config
-from moiq_jax.envs.wrappers import AutoReset, VmapWrapper
+from moiq_jax.envs.wrappers import AutoReset, DoneOnAbsorption, VmapWrapper
 from moiq_jax.evaluate import preference_returns
 from moiq_jax.experts.demonstrations import Demonstrations
 from moiq_jax.experts.loading import load_demonstrations, preference_order
@@ -162,7 +162,8 @@ def make_trainer(config: Config, algorithm: Algorithm, demos: Demonstrations | N
 
     default_setup = make_setup(labels, demos)
     num_experts = labels.shape[0]
-    rollout_env = VmapWrapper(AutoReset(env), c.num_envs)
+    ends_at_termination = algorithm.learns_from_demos and not c.absorbing_rollouts
+    rollout_env = VmapWrapper(AutoReset(DoneOnAbsorption(env) if ends_at_termination else env), c.num_envs)
     nets = networks_of_sizes(c.hidden_sizes, env.reward_dim, env.action_size, c.action_scale)
     optimisers = actor_critic.Optimisers(optax.adam(c.critic_lr), optax.adam(c.actor_lr), optax.adam(c.alpha_lr))
     settings = actor_critic.Settings(-float(env.action_size), c.tau, c.learn_alpha)

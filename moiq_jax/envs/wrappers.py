@@ -1,7 +1,7 @@
 """Env wrappers: time limit, absorbing state, auto-reset and batching.
 
 The usual stack is ``VmapWrapper(AutoReset(TimeLimit(AbsorbingState(env))))``; ``make`` builds the inner
-two, trainers add the outer two.
+two, trainers add the outer two (and ``DoneOnAbsorption`` between, when asked).
 """
 
 from __future__ import annotations
@@ -75,6 +75,17 @@ class AbsorbingState(Wrapper):
             done=jnp.zeros_like(nxt.done),
             info={**nxt.info, "absorbed": absorbed},
         )
+
+
+class DoneOnAbsorption(Wrapper):
+    """Marks the step of an ``AbsorbingState`` env that moves into the absorbing state as done, so that an
+    episode ends at termination (with V(s') = 0 there, as IQ-Learn's own code treats terminations) instead of
+    going on in the absorbing state; the observations keep the absorbing flag, so a policy sees the same
+    inputs either way."""
+
+    def step(self, state, action):
+        nxt = self.env.step(state, action)
+        return nxt.replace(done=nxt.done | (nxt.info["absorbed"] & ~state.info["absorbed"]))
 
 
 class AutoReset(Wrapper):
