@@ -70,6 +70,9 @@ class OffPolicyConfig:
             raise ValueError(f"total_steps ({self.total_steps}) must be a multiple of eval_interval ({self.eval_interval})")
 
 
+VALUE_TERMS = ("value", "v0")
+
+
 @dataclasses.dataclass(frozen=True)
 class MOIQConfig:
     """The inverse soft-Q critic of moiq (and of iq_learn, which has no consensus penalty)."""
@@ -77,6 +80,8 @@ class MOIQConfig:
     beta: float = _field(5.0, "consensus penalty weight (moiq); 0 is the paper's ablation")
     alpha_reg: float = _field(0.5, "IQ-Learn's chi^2 regulariser: phi(x) = x - x^2 / (4 alpha_reg)")
     use_target: bool = _field(True, "V(s') from the target critic (no gradient); False: online critic, as IQ-Learn")
+    value_term: str = _field("value", "IQ-Learn's second loss term: 'value', E_mix[V(s) - gamma V(s')] over expert and "
+                                      "policy rows; 'v0', (1 - gamma) E_expert[V(s)] (IQ-Learn's hopper and walker)")
     preference_warmup_steps: int = _field(50_000, "moiq with infer_preferences: env steps per expert under the "
                                                   "initial spread preferences before the first preference step")
     preference_interval: int = _field(10_000, "moiq with infer_preferences: env steps per expert between "
@@ -86,6 +91,8 @@ class MOIQConfig:
         if self.beta < 0:
             raise ValueError(f"beta must be non-negative, got {self.beta}")
         _positive(self, ("alpha_reg", "preference_interval"))
+        if self.value_term not in VALUE_TERMS:
+            raise ValueError(f"value_term must be one of {', '.join(VALUE_TERMS)}, got {self.value_term!r}")
         if self.preference_warmup_steps < 0:
             raise ValueError(f"preference_warmup_steps must be >= 0, got {self.preference_warmup_steps}")
 

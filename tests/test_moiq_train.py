@@ -88,6 +88,8 @@ def test_reward_correlations_of_trained_params_use_the_critic_losss_own_reward(t
 def test_validate_rejects_negative_beta():
     with pytest.raises(ValueError, match="beta"):
         validate(TINY.replace(beta=-1.0))
+    with pytest.raises(ValueError, match="value_term must be one of value, v0, got 'v1'"):
+        validate(TINY.replace(value_term="v1"))
 
 
 @pytest.fixture(scope="module")

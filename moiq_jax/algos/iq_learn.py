@@ -12,7 +12,8 @@ from moiq_jax.algos.offpolicy import Algorithm, expert_and_policy_batch
 def _objective(config):
     def loss(critic_params, nets, params, batches, preferences, hyper, key):
         iq_losses, _, metrics = moiq.critic_terms(critic_params, nets, params, batches, preferences, key,
-                                                  config.gamma, config.moiq.alpha_reg, config.moiq.use_target)
+                                                  config.gamma, config.moiq.alpha_reg, config.moiq.use_target,
+                                                  config.moiq.value_term)
         return jnp.sum(iq_losses), metrics
 
     return loss

@@ -14,6 +14,8 @@ batch is its expert samples followed by its policy samples, marked by ``is_exper
 
 from __future__ import annotations
 
+import functools
+
 import jax
 import jax.numpy as jnp
 
@@ -38,12 +40,18 @@ def recovered_rewards(nets: Networks, critic_params, params: Params, alpha, batc
     return q - discounted_next, discounted_next
 
 
-def iq_learn_loss(reward, value_difference, is_expert, alpha_reg):
-    """IQ-Learn's critic loss on scalar rewards (chi^2 divergence, 'value' sampling, online variant):
-    ``-E_expert[r] + E_mix[V(s) - gamma V(s')] + E_mix[r^2] / (4 alpha_reg)`` over expert and policy samples."""
+def iq_learn_loss(reward, value, discounted_next, is_expert, alpha_reg, gamma, value_term="value"):
+    """IQ-Learn's critic loss on scalar rewards (chi^2 divergence, online): ``-E_expert[r] + second term +
+    E_mix[r^2] / (4 alpha_reg)`` over expert and policy samples, the second term ``E_mix[V(s) - gamma V(s')]``
+    (``value_term="value"``) or ``(1 - gamma) E_expert[V(s)]`` (``"v0"``, the expert states standing for the
+    initial ones, as IQ-Learn's code)."""
     expert = is_expert.astype(reward.dtype)
     expert_term = -jnp.sum(reward * expert) / jnp.sum(expert)
-    return expert_term + jnp.mean(value_difference) + jnp.mean(reward**2) / (4.0 * alpha_reg)
+    if value_term == "v0":
+        second = (1.0 - gamma) * jnp.sum(value * expert) / jnp.sum(expert)
+    else:
+        second = jnp.mean(value - discounted_next)
+    return expert_term + second + jnp.mean(reward**2) / (4.0 * alpha_reg)
 
 
 def _norm(x):
@@ -68,7 +76,7 @@ def shared_batch(batches):
 
 
 def critic_terms(critic_params, nets: Networks, params: Params, batches, preferences, key, gamma, alpha_reg,
-                 use_target):
+                 use_target, value_term="value"):
     """Eq. 9's terms: each expert's IQ-Learn loss ``[E]``, the consensus penalty, and metrics.
 
     Expert i's IQ-Learn term uses its own batch (expert and policy rows), averaged over the two twins as
@@ -89,15 +97,16 @@ def critic_terms(critic_params, nets: Networks, params: Params, batches, prefere
         rewards, discounted_next = recovered_rewards(nets, critic_params, params, alpha, rows, preference,
                                                      next_key, gamma, use_target)
         value = soft_value(nets, critic_params, params.actor, alpha, own["obs"], preference, value_key)
-        return rewards[:, :per_expert], value - discounted_next[:per_expert], rewards[:, per_expert:]
+        return rewards[:, :per_expert], value, discounted_next[:per_expert], rewards[:, per_expert:]
 
-    own_rewards, value_differences, common_rewards = jax.vmap(one_expert)(
+    own_rewards, values, discounted_next, common_rewards = jax.vmap(one_expert)(
         {k: batches[k] for k in fields}, preferences, alphas, jax.random.split(key, num_experts)
-    )  # (E, 2, B, d), (E, B, d), (E, 2, S, d)
+    )  # (E, 2, B, d), (E, B, d), (E, B, d), (E, 2, S, d)
     scalar_rewards = jnp.einsum("ekbd,ed->ekb", own_rewards, preferences)
-    scalar_values = jnp.einsum("ebd,ed->eb", value_differences, preferences)
-    per_twin = jax.vmap(jax.vmap(iq_learn_loss, in_axes=(0, None, None, None)), in_axes=(0, 0, 0, None))(
-        scalar_rewards, scalar_values, batches["is_expert"], alpha_reg
+    scalar_values, scalar_next = (jnp.einsum("ebd,ed->eb", x, preferences) for x in (values, discounted_next))
+    loss = functools.partial(iq_learn_loss, alpha_reg=alpha_reg, gamma=gamma, value_term=value_term)
+    per_twin = jax.vmap(jax.vmap(loss, in_axes=(0, None, None, None)))(
+        scalar_rewards, scalar_values, scalar_next, batches["is_expert"]
     )  # (E, 2)
     iq_losses = jnp.mean(per_twin, axis=1)
     penalty = consensus_penalty(common_rewards) if penalised else jnp.zeros(())
@@ -108,10 +117,10 @@ def critic_terms(critic_params, nets: Networks, params: Params, batches, prefere
 
 
 def critic_loss(critic_params, nets: Networks, params: Params, batches, preferences, beta, key, gamma, alpha_reg,
-                use_target):
+                use_target, value_term="value"):
     """Eq. 9 summed over experts plus ``beta`` times the consensus penalty; returns ``(loss, metrics)``."""
     iq_losses, penalty, metrics = critic_terms(critic_params, nets, params, batches, preferences, key, gamma,
-                                               alpha_reg, use_target)
+                                               alpha_reg, use_target, value_term)
     return jnp.sum(iq_losses) + beta * penalty, {**metrics, "penalty": penalty}
 
 
@@ -139,7 +148,7 @@ def reward_correlations(config, nets: Networks):
 def _objective(config):
     def loss(critic_params, nets, params, batches, preferences, hyper, key):
         return critic_loss(critic_params, nets, params, batches, preferences, hyper["beta"], key, config.gamma,
-                           config.moiq.alpha_reg, config.moiq.use_target)
+                           config.moiq.alpha_reg, config.moiq.use_target, config.moiq.value_term)
 
     return loss
 
