@@ -159,8 +159,7 @@ def best_model_returns(result: Result, beta: float, episodes: int) -> np.ndarray
     """``[seeds, E, d]`` mean vector returns over ``episodes`` of each ``beta`` run's best model at the
     experts' preferences."""
     config = result.config
-    return np.stack([moiq_jax.evaluate(jax.tree_util.tree_map(lambda x, r=r: x[r], result.best_params),
-                                       config.env, config.preferences, episodes=episodes)
+    return np.stack([moiq_jax.evaluate(result.run(r).best_params, config.env, config.preferences, episodes=episodes)
                      for r in runs_of(result, beta)])
 
 
@@ -168,8 +167,8 @@ def best_model_correlations(result: Result, beta: float) -> tuple[np.ndarray, np
     """``([seeds, E], [seeds, E, d])`` the recovered reward's Pearson correlations with the true one on the
     demonstrations (scalarised, and per objective) at each ``beta`` run's best model
     (``moiq_jax.reward_correlations``)."""
-    per_run = [moiq_jax.reward_correlations(jax.tree_util.tree_map(lambda x, r=r: x[r], result.best_params), result.config)
-               for r in runs_of(result, beta)]
+    per_run = [moiq_jax.reward_correlations(run.best_params, run.config)
+               for run in map(result.run, runs_of(result, beta))]
     return (np.stack([c["reward_correlation"] for c in per_run]),
             np.stack([c["reward_correlation_objectives"] for c in per_run]))
 
