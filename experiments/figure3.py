@@ -14,7 +14,6 @@ from __future__ import annotations
 import argparse
 import json
 
-import jax
 import matplotlib
 import numpy as np
 
@@ -45,8 +44,7 @@ def main() -> None:
     fig, axes = plt.subplots(1, len(envs), figsize=(5 * len(envs), 4), layout="constrained", squeeze=False)
     for ax, env in zip(axes[0], envs):
         result = paper.task_sweep(env, args)
-        returns = {beta: np.stack([moiq_jax.evaluate(jax.tree_util.tree_map(lambda x, r=r: x[r], result.best_params),
-                                                     env, preferences, episodes=episodes)
+        returns = {beta: np.stack([moiq_jax.evaluate(result.run(r).best_params, env, preferences, episodes=episodes)
                                    for r in paper.runs_of(result, beta)]) for beta in paper.MOIQ_BETAS}  # [seeds, 19, 2]
         experts = paper.expert_returns(env)
         every = np.concatenate([r.reshape(-1, 2) for r in returns.values()] + [experts])

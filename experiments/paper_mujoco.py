@@ -1,19 +1,21 @@
 """What the MuJoCo experiment scripts (table1-3.py, figure2-4.py) share: the paper's numbers, the configs
-per task, cached vmapped sweeps over beta and seeds, and the evaluation of their best models.
+per task, the sweeps over beta and seeds kept run by run, and the evaluation of their best models.
 
-A task's MOIQ sweep (betas 5 and 0 x seeds, one compiled program: ``moiq_jax.sweep``) serves Tables 1-3 and
-Figures 2 and 3, so it runs once and is kept as ``<cache>/<env>-moiq-<steps>.pkl``; GAIL (Figure 2) and the
-one-demonstration runs (Figure 4) have sweeps of their own. ``--quick`` runs tiny sweeps (CI smoke size)
-into ``<cache>/quick``.
+A task's MOIQ sweep (betas 5, 0 and 0.5 x seeds) serves Tables 1-3 and Figures 2 and 3; GAIL (Figure 2) and
+the one-demonstration runs (Figure 4) have sweeps of their own. Each finished run is kept in
+``<archive>/<env>-<name>/<run>`` (``moiq_jax.save_result``: small files, committed, with the digest of the
+demonstrations it learnt from), so a sweep can be trained over several sessions (``experiments/train_runs.py``)
+and the scripts read it without retraining. ``--quick`` runs tiny sweeps (CI smoke size) under ``<cache>/quick``.
 """
 
 from __future__ import annotations
 
 import argparse
 import csv
+import dataclasses
+import hashlib
 import json
 import pathlib
-import pickle
 
 import jax
 import matplotlib
@@ -23,10 +25,11 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 
 import moiq_jax
+from moiq_jax.archive import RESULT_FILE, load_result, save_result, stack_results
 from moiq_jax.config import Config, tuned
 from moiq_jax.result import Result
 from moiq_jax.runtime import split_cpu_into_devices, use_compilation_cache
-from moiq_jax.train import SWEEP_FILE, run_grid
+from moiq_jax.train import SWEEP_FILE, run_dir_names, run_grid
 
 ENVS = ("mo-halfcheetah", "mo-hopper", "mo-walker2d", "mo-ant")
 DEMOS = pathlib.Path(__file__).resolve().parent / "demos"
@@ -67,6 +70,7 @@ PROTOCOLS = {
               "eval_episodes": 1, "buffer_size": 64, "hidden_sizes": (16, 16), "batch_size": 16},
 }
 IQ_LEARN_DEFAULTS = {"learn_alpha": False, "init_alpha": 0.01, "use_target": False}
+DIGEST_FILE = "demos.sha256"  # beside each kept run: the demonstrations file it learnt from
 
 
 def protocol_of(args) -> str:
@@ -97,7 +101,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="cpu: sized for the 2-core CPU machine; paper: the paper's (for an accelerator)")
     parser.add_argument("--quick", action="store_true", help="a tiny run of every step (CI smoke test)")
     parser.add_argument("--cache", default="results/mujoco/sweeps",
-                        help="where the sweeps are trained (checkpointed, resumable) and kept, per protocol")
+                        help="where the sweeps are trained (checkpointed, resumable), per protocol")
+    parser.add_argument("--archive", help="where finished runs are kept; default results/mujoco_<protocol>/runs")
 
 
 def out_dir(args, name: str) -> pathlib.Path:
@@ -107,30 +112,82 @@ def out_dir(args, name: str) -> pathlib.Path:
     return out
 
 
-def task_sweep(env: str, args, name: str = "moiq", config: Config | None = None, betas=BETAS) -> Result:
-    """The ``betas`` (None: the algorithm has no beta) x seed sweep ``name`` of ``env`` under the command
-    line's protocol (``config`` defaults to its ``moiq_config``): loaded from the cache when it holds this
-    sweep finished, else trained chunk by chunk in ``<cache>/<protocol>/<env>-<name>``, checkpointed after
-    every evaluation, so that the same command run again after a crash resumes it there."""
-    seeds = list(range(2 if args.quick else args.seeds))
+def archive_of(args) -> pathlib.Path:
+    """Where a protocol's finished runs are kept (small files, committed): ``--archive``, else
+    ``results/mujoco_<protocol>/runs``; the CI smoke size keeps its runs under ``<cache>/quick/runs``."""
+    if args.archive:
+        return pathlib.Path(args.archive)
+    protocol = protocol_of(args)
+    return pathlib.Path(args.cache) / "quick" / "runs" if protocol == "quick" else pathlib.Path(f"results/mujoco_{protocol}/runs")
+
+
+def run_names(betas, seeds) -> list[str]:
+    """The runs of a ``betas`` (None: the algorithm has no beta) x ``seeds`` grid, beta outermost: ``beta5-seed0``."""
+    return run_dir_names(run_grid({"seed": seeds} if betas is None else {"beta": list(betas), "seed": seeds}))
+
+
+def demos_digest(config: Config) -> str:
+    """The SHA-256 of ``config``'s demonstrations file: a kept run is valid only for the demos it learnt from."""
+    return hashlib.sha256(pathlib.Path(config.demos).read_bytes()).hexdigest()
+
+
+def load_run(folder: pathlib.Path, config: Config) -> Result | None:
+    """The run kept in ``folder`` (None if there is none), checked to be ``config``'s (``config`` with the run's
+    swept values) and trained on the same demonstrations file, whose path is set to this checkout's."""
+    if not (folder / RESULT_FILE).exists():
+        return None
+    run = load_result(folder)
+    run = dataclasses.replace(run, config=run.config.replace(demos=config.demos))
+    if run.config != config:
+        given, kept = config.to_dict(), run.config.to_dict()
+        differ = sorted(k for k in given if given[k] != kept.get(k))
+        raise ValueError(f"{folder} holds a run of another config ({', '.join(differ)}); move it away to retrain")
+    if (folder / DIGEST_FILE).read_text().strip() != demos_digest(config):
+        raise ValueError(f"{folder} holds a run trained on other demonstrations than {config.demos}; move it away "
+                         "to retrain")
+    return run
+
+
+def train_runs(env: str, args, name: str, config: Config, betas, seeds) -> list[str]:
+    """Train the runs of ``env``'s sweep ``name`` (``betas`` x ``seeds``; betas None: an algorithm without one)
+    that the archive (``archive_of``) does not hold yet, one checkpointed sweep per beta in
+    ``<cache>/<protocol>/<env>-<name>-beta<b>-seeds<s1-s2..>`` (the same call after a crash resumes it there),
+    and keep each run in ``<archive>/<env>-<name>/<run>`` when its sweep ends. Returns the runs trained."""
     split_cpu_into_devices(len(seeds))  # (before JAX's first computation) each seed's runs on a CPU device of their own
     use_compilation_cache()  # each seed's evaluation, and every rerun, loads the same programs
-    protocol = protocol_of(args)
-    config = moiq_config(env, protocol) if config is None else config
-    cache = pathlib.Path(args.cache) / protocol
-    path = cache / f"{env}-{name}.pkl"
-    values = {"seed": seeds} if betas is None else {"beta": list(betas), "seed": seeds}
-    if path.exists():
-        cached = pickle.loads(path.read_bytes())
-        if isinstance(cached, Result) and cached.config == config and all(
-                np.array_equal(cached.runs[swept], value) for swept, value in run_grid(values).items()):
-            return cached
-    run_dir = cache / f"{env}-{name}"  # a sweep of another config or seeds there is an error, not overwritten
-    result = jax.device_get(moiq_jax.sweep(config, run_dir=str(run_dir), resume=(run_dir / SWEEP_FILE).exists(), **values))
-    path.write_bytes(pickle.dumps(result))
-    print(f"{env}: trained {name} ({protocol} protocol), {len(betas or [None])} betas x {len(seeds)} seeds in "
-          f"{result.seconds:.0f}s (kept in {path})")
-    return result
+    kept = archive_of(args) / f"{env}-{name}"
+    trained = []
+    for beta in [None] if betas is None else betas:
+        swept = {} if beta is None else {"beta": beta}
+        missing = [s for s in seeds if load_run(kept / run_names(None if beta is None else [beta], [s])[0],
+                                                config.replace(**swept, seed=s)) is None]
+        if not missing:
+            continue
+        label = "-".join([env, name, *([f"beta{beta:g}"] if beta is not None else []), "seeds" + "-".join(map(str, missing))])
+        run_dir = pathlib.Path(args.cache) / protocol_of(args) / label
+        result = moiq_jax.sweep(config, run_dir=str(run_dir), resume=(run_dir / SWEEP_FILE).exists(),
+                                **({} if beta is None else {"beta": [beta]}), seed=missing)
+        for i, run in enumerate(run_names(None if beta is None else [beta], missing)):
+            save_result(jax.device_get(result.run(i)), kept / run)
+            (kept / run / DIGEST_FILE).write_text(demos_digest(config) + "\n")
+            trained.append(run)
+        print(f"{env}: trained {name} ({protocol_of(args)} protocol) {', '.join(run_names(None if beta is None else [beta], missing))} "
+              f"in {result.seconds:.0f}s (kept in {kept})")
+    return trained
+
+
+def task_sweep(env: str, args, name: str = "moiq", config: Config | None = None, betas=BETAS) -> Result:
+    """The ``betas`` (None: the algorithm has no beta) x seed sweep ``name`` of ``env`` under the command
+    line's protocol (``config`` defaults to its ``moiq_config``), from the runs kept in the archive; those
+    not kept yet are trained first (``train_runs``), so a sweep longer than a session is trained in parts
+    (``experiments/train_runs.py``) and the tables read it without retraining."""
+    seeds = list(range(2 if args.quick else args.seeds))
+    config = moiq_config(env, protocol_of(args)) if config is None else config
+    train_runs(env, args, name, config, betas, seeds)
+    kept = archive_of(args) / f"{env}-{name}"
+    grid = run_grid({"seed": seeds} if betas is None else {"beta": list(betas), "seed": seeds})
+    return stack_results([load_run(kept / run, config.replace(**{k: v[i].item() for k, v in grid.items()}))
+                          for i, run in enumerate(run_names(betas, seeds))])
 
 
 def near_expert(value: float, expert: float) -> bool:

@@ -1,6 +1,7 @@
 """moiq_jax: multi-objective inverse RL from several experts with different preferences, in JAX."""
 
 from moiq_jax import envs
+from moiq_jax.archive import load_result, save_result, stack_results
 from moiq_jax.config import Config
 from moiq_jax.evaluate import episode_returns, evaluate
 from moiq_jax.experts import Demonstrations
@@ -8,5 +9,5 @@ from moiq_jax.result import Result
 from moiq_jax.train import reward_correlations, sweep, train
 
 __version__ = "0.1.0"
-__all__ = ["Config", "Demonstrations", "Result", "envs", "episode_returns", "evaluate", "reward_correlations", "sweep",
-           "train"]
+__all__ = ["Config", "Demonstrations", "Result", "envs", "episode_returns", "evaluate", "load_result",
+           "reward_correlations", "save_result", "stack_results", "sweep", "train"]

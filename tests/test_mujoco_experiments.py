@@ -1,5 +1,6 @@
 """The MuJoCo experiment scripts (Tables 1-3, Figure 3) end to end in their --quick mode on one task: one
-cached sweep serves all four, and each writes its CSV, JSON and PNG with numbers consistent across them."""
+sweep, kept run by run, serves all four, and each writes its CSV, JSON and PNG with numbers consistent across
+them; a run missing from the archive is trained alone, and a kept run of another config is an error."""
 
 import csv
 import json
@@ -14,13 +15,13 @@ import pytest
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 
 
-def run(script, tmp_path):
+def run(script, tmp_path, *extra, ok=True):
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     out = subprocess.run([sys.executable, str(ROOT / "experiments" / script), "--quick", "--envs", "mo-halfcheetah",
-                          "--cache", str(tmp_path / "cache"), "--out", str(tmp_path / "mujoco_quick" / script[:-3])],
-                         capture_output=True, text=True, timeout=900, env=env, check=False)
-    assert out.returncode == 0, out.stderr[-3000:]
-    return out.stdout
+                          "--cache", str(tmp_path / "cache"), "--out", str(tmp_path / "mujoco_quick" / script[:-3]),
+                          *extra], capture_output=True, text=True, timeout=900, env=env, check=False)
+    assert (out.returncode == 0) == ok, out.stderr[-3000:]
+    return out.stdout if ok else out.stderr
 
 
 @pytest.fixture(scope="module")
@@ -31,11 +32,15 @@ def outputs(tmp_path_factory):
 
 def test_one_sweep_serves_every_script(outputs):
     tmp_path, printed = outputs
-    assert "trained moiq (quick protocol), 3 betas x 2 seeds" in printed["table1.py"]
-    assert all("trained" not in printed[s] for s in ("table2.py", "table3.py", "figure3.py"))  # read from the cache
-    kept = tmp_path / "cache" / "quick"
-    assert sorted(p.name for p in kept.iterdir()) == ["mo-halfcheetah-moiq", "mo-halfcheetah-moiq.pkl"]
-    assert (kept / "mo-halfcheetah-moiq" / "sweep.json").exists()  # trained as a checkpointed, resumable sweep
+    for beta in ("5", "0", "0.5"):  # one checkpointed sweep per beta
+        assert f"trained moiq (quick protocol) beta{beta}-seed0, beta{beta}-seed1 in" in printed["table1.py"]
+        assert (tmp_path / "cache" / "quick" / f"mo-halfcheetah-moiq-beta{beta}-seeds0-1" / "sweep.json").exists()
+    assert all("trained" not in printed[s] for s in ("table2.py", "table3.py", "figure3.py"))  # read from the archive
+    kept = tmp_path / "cache" / "quick" / "runs" / "mo-halfcheetah-moiq"
+    assert sorted(p.name for p in kept.iterdir()) == [f"beta{b}-seed{s}" for b in ("0", "0.5", "5") for s in (0, 1)]
+    for run in kept.iterdir():  # small files only, with the demonstrations' digest
+        assert sorted(p.name for p in run.iterdir()) == ["best_params.npz", "demos.sha256", "history.npz", "result.json"]
+        assert sum(p.stat().st_size for p in run.iterdir()) < 200_000
 
 
 def test_tables_and_figure_files(outputs):
@@ -80,3 +85,22 @@ def test_paper_summary_reads_every_table(outputs):
     with open(tmp_path / "paper" / "table3.csv") as f:
         assert all(r["claim_holds"] == str(float(r["correlation"]) >= float(r["paper"])) for r in csv.DictReader(f))
     assert "## Table 2" in (tmp_path / "paper" / "summary.md").read_text()
+
+
+def test_a_missing_run_is_trained_alone_and_a_foreign_one_refused(outputs):
+    tmp_path, _ = outputs
+    archive = tmp_path / "archive"
+    shutil.copytree(tmp_path / "cache" / "quick" / "runs", archive)
+    shutil.rmtree(archive / "mo-halfcheetah-moiq" / "beta0-seed1")
+    printed = run("table2.py", tmp_path, "--archive", str(archive))
+    assert "trained moiq (quick protocol) beta0-seed1 in" in printed and printed.count("trained moiq") == 1
+    assert (archive / "mo-halfcheetah-moiq" / "beta0-seed1" / "result.json").exists()
+    record = archive / "mo-halfcheetah-moiq" / "beta5-seed0" / "result.json"
+    saved = json.loads(record.read_text())
+    record.write_text(json.dumps({**saved, "config": {**saved["config"], "critic_lr": 1e-3}}))
+    error = run("table2.py", tmp_path, "--archive", str(archive), ok=False)
+    assert "beta5-seed0 holds a run of another config (critic_lr); move it away to retrain" in error
+    record.write_text(json.dumps(saved))
+    (record.parent / "demos.sha256").write_text("0" * 64)
+    error = run("table2.py", tmp_path, "--archive", str(archive), ok=False)
+    assert "beta5-seed0 holds a run trained on other demonstrations" in error

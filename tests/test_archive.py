@@ -1,0 +1,69 @@
+"""Saved results: a sweep's runs saved one by one, read back and joined, equal the sweep (parameters, history,
+swept values) and evaluate to the same returns; joining runs of different sweeps, or unfinished ones, is a
+clear error."""
+
+import jax
+import numpy as np
+import pytest
+
+import moiq_jax
+from moiq_jax.archive import PARAMS_FILE, RESULT_FILE, load_result, save_result, stack_results
+from moiq_jax.config import tuned
+
+SMALL = {"total_steps": 600, "eval_interval": 300, "hidden_sizes": (8, 8), "batch_size": 8, "learning_starts": 60,
+         "buffer_size": 600}
+
+
+@pytest.fixture(scope="module")
+def sweep():
+    return moiq_jax.sweep(tuned("cdst", **SMALL), beta=[0.0, 5.0], seed=[0, 3])
+
+
+def test_saved_runs_join_into_the_sweep(sweep, tmp_path):
+    for i in range(4):
+        save_result(sweep.run(i), tmp_path / f"run{i}")
+    loaded = [load_result(tmp_path / f"run{i}") for i in range(4)]
+    assert loaded[2].config == sweep.run(2).config and loaded[2].config.moiq.beta == 5.0 and loaded[3].config.seed == 3
+    joined = stack_results(loaded)
+    np.testing.assert_array_equal(joined.runs["beta"], sweep.runs["beta"])
+    np.testing.assert_array_equal(joined.runs["seed"], sweep.runs["seed"])
+    for x, y in zip(jax.tree.leaves(joined.best_params), jax.tree.leaves(sweep.best_params)):
+        np.testing.assert_array_equal(np.asarray(x), np.asarray(y))
+    assert joined.best_params.action_scale == sweep.best_params.action_scale
+    for name, values in sweep.history.items():
+        np.testing.assert_array_equal(joined.history[name], values, err_msg=name)
+        assert joined.history[name].dtype == np.asarray(values).dtype, name
+    np.testing.assert_array_equal(joined.best_return, sweep.best_return)
+    np.testing.assert_array_equal(joined.preferences, sweep.preferences)
+    prefs = sweep.config.preferences
+    np.testing.assert_allclose(moiq_jax.evaluate(joined.run(3).best_params, "cdst", prefs),
+                               moiq_jax.evaluate(sweep.run(3).best_params, "cdst", prefs))
+    # a whole sweep saves and loads with its run axis too
+    save_result(sweep, tmp_path / "sweep")
+    whole = load_result(tmp_path / "sweep")
+    assert whole.config == sweep.config
+    np.testing.assert_array_equal(whole.runs["beta"], sweep.runs["beta"])
+    np.testing.assert_array_equal(whole.history["eval_return"], sweep.history["eval_return"])
+
+
+def test_joining_other_sweeps_or_unfinished_runs_is_an_error(sweep, tmp_path):
+    run = sweep.run(0)
+    other = run.__class__(**{**run.__dict__, "config": run.config.replace(critic_lr=1e-3)})
+    with pytest.raises(ValueError, match="run 1 is not of the same sweep as run 0: its config differs in critic_lr"):
+        stack_results([run, other])
+    short = run.__class__(**{**run.__dict__, "history": {k: v[:1] for k, v in run.history.items()}})
+    with pytest.raises(ValueError, match="run 1 has other evaluations than run 0"):
+        stack_results([run, short])
+    with pytest.raises(ValueError, match="joins single runs"):
+        stack_results([sweep])
+    with pytest.raises(FileNotFoundError, match="holds no saved result"):
+        load_result(tmp_path)
+    # a save cut before its record is written leaves no result behind
+    save_result(run, tmp_path / "cut")
+    (tmp_path / "cut" / RESULT_FILE).unlink()
+    assert (tmp_path / "cut" / PARAMS_FILE).exists()
+    with pytest.raises(FileNotFoundError):
+        load_result(tmp_path / "cut")
+    admm = moiq_jax.train(tuned("dst", algo="admm", rounds=1))
+    with pytest.raises(TypeError, match="admm.s has no network parameters"):
+        save_result(admm, tmp_path / "admm")
