@@ -103,6 +103,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--cache", default="results/mujoco/sweeps",
                         help="where the sweeps are trained (checkpointed, resumable), per protocol")
     parser.add_argument("--archive", help="where finished runs are kept; default results/mujoco_<protocol>/runs")
+    parser.add_argument("--no-train", action="store_true",
+                        help="read the kept runs only; a run not kept is an error naming the command that trains it")
 
 
 def out_dir(args, name: str) -> pathlib.Path:
@@ -183,11 +185,17 @@ def task_sweep(env: str, args, name: str = "moiq", config: Config | None = None,
     (``experiments/train_runs.py``) and the tables read it without retraining."""
     seeds = list(range(2 if args.quick else args.seeds))
     config = moiq_config(env, protocol_of(args)) if config is None else config
-    train_runs(env, args, name, config, betas, seeds)
     kept = archive_of(args) / f"{env}-{name}"
     grid = run_grid({"seed": seeds} if betas is None else {"beta": list(betas), "seed": seeds})
-    return stack_results([load_run(kept / run, config.replace(**{k: v[i].item() for k, v in grid.items()}))
-                          for i, run in enumerate(run_names(betas, seeds))])
+    configs = [config.replace(**{k: v[i].item() for k, v in grid.items()}) for i in range(len(grid["seed"]))]
+    if args.no_train:
+        missing = [run for run, c in zip(run_names(betas, seeds), configs) if load_run(kept / run, c) is None]
+        if missing:
+            command = ("" if name != "moiq" else f"; `PYTHONPATH=. python experiments/train_runs.py --env {env} "
+                       f"--protocol {protocol_of(args)} --betas ... --seed-list ...` trains them")
+            raise SystemExit(f"{kept} does not hold the runs {', '.join(missing)} (--no-train){command}")
+    train_runs(env, args, name, config, betas, seeds)
+    return stack_results([load_run(kept / run, c) for run, c in zip(run_names(betas, seeds), configs)])
 
 
 def near_expert(value: float, expert: float) -> bool:

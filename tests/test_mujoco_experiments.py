@@ -92,6 +92,8 @@ def test_a_missing_run_is_trained_alone_and_a_foreign_one_refused(outputs):
     archive = tmp_path / "archive"
     shutil.copytree(tmp_path / "cache" / "quick" / "runs", archive)
     shutil.rmtree(archive / "mo-halfcheetah-moiq" / "beta0-seed1")
+    error = run("table2.py", tmp_path, "--archive", str(archive), "--no-train", ok=False)
+    assert "mo-halfcheetah-moiq does not hold the runs beta0-seed1 (--no-train)" in error
     printed = run("table2.py", tmp_path, "--archive", str(archive))
     assert "trained moiq (quick protocol) beta0-seed1 in" in printed and printed.count("trained moiq") == 1
     assert (archive / "mo-halfcheetah-moiq" / "beta0-seed1" / "result.json").exists()
