@@ -170,8 +170,9 @@ def train_runs(env: str, args, name: str, config: Config, betas, seeds) -> list[
         result = moiq_jax.sweep(config, run_dir=str(run_dir), resume=(run_dir / SWEEP_FILE).exists(),
                                 **({} if beta is None else {"beta": [beta]}), seed=missing)
         for i, run in enumerate(run_names(None if beta is None else [beta], missing)):
-            save_result(jax.device_get(result.run(i)), kept / run)
+            (kept / run).mkdir(parents=True, exist_ok=True)  # the digest first: save_result's record comes last
             (kept / run / DIGEST_FILE).write_text(demos_digest(config) + "\n")
+            save_result(jax.device_get(result.run(i)), kept / run)
             trained.append(run)
         print(f"{env}: trained {name} ({protocol_of(args)} protocol) {', '.join(run_names(None if beta is None else [beta], missing))} "
               f"in {result.seconds:.0f}s (kept in {kept})")
