@@ -2,10 +2,12 @@
 this project's, ``paper_mujoco.MOIQ_BETAS``) per task and preference, over 100 evaluation episodes and every
 seed, next to the experts' and the paper's.
 
-    PYTHONPATH=. python experiments/table1.py [--envs mo-hopper ...] [--seeds 3] [--protocol cpu|paper] [--quick] [--out DIR]
+    PYTHONPATH=. python experiments/table1.py [--envs mo-hopper ...] [--seeds 3] [--betas 5 0.5] [--protocol cpu|paper]
+        [--quick] [--no-train] [--out DIR]
 
-Trains (or loads from ``--cache``) each task's beta x seed sweep (``paper_mujoco.task_sweep``) and writes
-``table1.csv`` / ``.json`` and ``table1.png`` (MOIQ / expert per setting) under ``--out``.
+Reads each task's beta x seed sweep from the kept runs, training those not kept yet (``paper_mujoco.task_sweep``;
+with ``--betas``, only those betas' runs), and writes ``table1.csv`` / ``.json`` and ``table1.png`` (MOIQ /
+expert per setting) under ``--out``.
 """
 
 from __future__ import annotations
@@ -24,17 +26,21 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     paper.add_arguments(parser)
     parser.add_argument("--episodes", type=int, default=100, help="evaluation episodes per best model")
+    parser.add_argument("--betas", type=float, nargs="+",
+                        help="MOIQ's rows, reading (or training) only their runs; default: the paper's beta and this "
+                             "project's, from the task's whole sweep (which Tables 2-3 share)")
     parser.add_argument("--out", help="default: results/mujoco_<protocol>/table1")
     args = parser.parse_args()
     out = paper.out_dir(args, "table1")
+    betas = paper.MOIQ_BETAS if args.betas is None else args.betas
     episodes = 1 if args.quick else args.episodes
 
     rows = []
     for env in args.envs:
-        result = paper.task_sweep(env, args)
+        result = paper.task_sweep(env, args, betas=paper.BETAS if args.betas is None else args.betas)
         preferences = np.asarray(result.config.preferences)
         expert = (paper.expert_returns(env) * preferences).sum(-1)
-        for beta in paper.MOIQ_BETAS:
+        for beta in betas:
             returns = paper.best_model_returns(result, beta, episodes)  # [seeds, E, d]
             scalar = (returns * preferences).sum(-1)
             for e, w in enumerate(preferences):
@@ -45,8 +51,7 @@ def main() -> None:
                              "near_expert": paper.near_expert(scalar[:, e].mean(), expert[e]),
                              "paper_moiq": paper.PAPER_TABLE1[env][e], "seeds": int(scalar.shape[0]),
                              "episodes": episodes})
-    reached = {f"beta={beta:g}": sum(r["near_expert"] for r in rows if r["beta"] == beta)
-               for beta in paper.MOIQ_BETAS}
+    reached = {f"beta={beta:g}": sum(r["near_expert"] for r in rows if r["beta"] == beta) for beta in betas}
     paper.write_outputs(out, "table1", args, rows, settings_at_90_percent_of_expert=reached)
 
     fig, ax = plt.subplots(figsize=(max(6, len(rows)), 3.6), layout="constrained")

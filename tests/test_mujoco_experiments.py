@@ -94,6 +94,9 @@ def test_a_missing_run_is_trained_alone_and_a_foreign_one_refused(outputs):
     shutil.rmtree(archive / "mo-halfcheetah-moiq" / "beta0-seed1")
     error = run("table2.py", tmp_path, "--archive", str(archive), "--no-train", ok=False)
     assert "mo-halfcheetah-moiq does not hold the runs beta0-seed1 (--no-train)" in error
+    run("table1.py", tmp_path, "--archive", str(archive), "--no-train", "--betas", "0.5", "--out", str(tmp_path / "b"))
+    with open(tmp_path / "b" / "table1.csv") as f:  # beta 0.5's rows, from its runs alone
+        assert [r["beta"] for r in csv.DictReader(f)] == ["0.5"] * 3
     printed = run("table2.py", tmp_path, "--archive", str(archive))
     assert "trained moiq (quick protocol) beta0-seed1 in" in printed and printed.count("trained moiq") == 1
     assert (archive / "mo-halfcheetah-moiq" / "beta0-seed1" / "result.json").exists()
