@@ -107,6 +107,19 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="read the kept runs only; a run not kept is an error naming the command that trains it")
 
 
+def add_betas_argument(parser: argparse.ArgumentParser) -> None:
+    """``--betas``: the MOIQ rows of a table, reading (or training) only their runs (``row_and_sweep_betas``)."""
+    parser.add_argument("--betas", type=float, nargs="+",
+                        help="MOIQ's rows, reading (or training) only their runs; default: the paper's beta and this "
+                             "project's, from the task's whole sweep (which the other tables share)")
+
+
+def row_and_sweep_betas(args) -> tuple[tuple, tuple]:
+    """``(the betas of a table's MOIQ rows, the betas of the sweep to read)``: ``MOIQ_BETAS`` from the whole
+    sweep ``BETAS``, or ``--betas`` from their runs alone."""
+    return (MOIQ_BETAS, BETAS) if args.betas is None else (tuple(args.betas), tuple(args.betas))
+
+
 def out_dir(args, name: str) -> pathlib.Path:
     """The output folder of experiment ``name``: ``--out``, else ``results/mujoco_<protocol>/<name>``."""
     out = pathlib.Path(args.out or f"results/mujoco_{protocol_of(args)}/{name}")

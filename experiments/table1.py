@@ -26,18 +26,16 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     paper.add_arguments(parser)
     parser.add_argument("--episodes", type=int, default=100, help="evaluation episodes per best model")
-    parser.add_argument("--betas", type=float, nargs="+",
-                        help="MOIQ's rows, reading (or training) only their runs; default: the paper's beta and this "
-                             "project's, from the task's whole sweep (which Tables 2-3 share)")
+    paper.add_betas_argument(parser)
     parser.add_argument("--out", help="default: results/mujoco_<protocol>/table1")
     args = parser.parse_args()
     out = paper.out_dir(args, "table1")
-    betas = paper.MOIQ_BETAS if args.betas is None else args.betas
+    betas, sweep_betas = paper.row_and_sweep_betas(args)
     episodes = 1 if args.quick else args.episodes
 
     rows = []
     for env in args.envs:
-        result = paper.task_sweep(env, args, betas=paper.BETAS if args.betas is None else args.betas)
+        result = paper.task_sweep(env, args, betas=sweep_betas)
         preferences = np.asarray(result.config.preferences)
         expert = (paper.expert_returns(env) * preferences).sum(-1)
         for beta in betas:

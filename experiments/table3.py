@@ -2,11 +2,12 @@
 ``paper_mujoco.MOIQ_BETAS``) and the true reward on the experts' demonstrations, scalarised by each expert's
 preference and per objective, at each run's best model, averaged over seeds.
 
-    PYTHONPATH=. python experiments/table3.py [--envs ...] [--seeds 3] [--protocol cpu|paper] [--quick] [--out DIR]
+    PYTHONPATH=. python experiments/table3.py [--envs ...] [--seeds 3] [--betas 5 0.5] [--protocol cpu|paper] [--quick]
+        [--no-train] [--out DIR]
 
-Uses the same cached sweeps as table1.py and computes the correlations at each run's best model
-(``moiq_jax.reward_correlations``, the reward of the critic loss: V(s') from the online critic under both
-protocols); writes ``table3.csv`` / ``.json`` and ``table3.png``.
+Reads the same kept runs as table1.py (``--betas``: only those betas' runs) and computes the correlations at
+each run's best model (``moiq_jax.reward_correlations``, the reward of the critic loss: V(s') from the online
+critic under both protocols); writes ``table3.csv`` / ``.json`` and ``table3.png``.
 """
 
 from __future__ import annotations
@@ -24,14 +25,16 @@ import paper_mujoco as paper
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     paper.add_arguments(parser)
+    paper.add_betas_argument(parser)
     parser.add_argument("--out", help="default: results/mujoco_<protocol>/table3")
     args = parser.parse_args()
     out = paper.out_dir(args, "table3")
+    betas, sweep_betas = paper.row_and_sweep_betas(args)
 
     rows = []
     for env in args.envs:
-        result = paper.task_sweep(env, args)
-        for beta in paper.MOIQ_BETAS:
+        result = paper.task_sweep(env, args, betas=sweep_betas)
+        for beta in betas:
             scalar, per_objective = paper.best_model_correlations(result, beta)  # [seeds, E], [seeds, E, d]
             for e, w in enumerate(result.config.preferences):
                 rows.append({"env": env, "preference": list(w), "beta": beta,
@@ -39,7 +42,7 @@ def main() -> None:
                              "per_objective": np.round(per_objective[:, e].mean(0), 3).tolist(),
                              "paper": paper.PAPER_TABLE3[env][e]})
     at_least = {f"beta={beta:g}": sum(r["correlation"] >= r["paper"] for r in rows if r["beta"] == beta)
-                for beta in paper.MOIQ_BETAS}
+                for beta in betas}
     paper.write_outputs(out, "table3", args, rows, settings_at_least_the_papers=at_least)
 
     fig, ax = plt.subplots(figsize=(max(6, len(rows)), 3.4), layout="constrained")

@@ -95,8 +95,10 @@ def test_a_missing_run_is_trained_alone_and_a_foreign_one_refused(outputs):
     error = run("table2.py", tmp_path, "--archive", str(archive), "--no-train", ok=False)
     assert "mo-halfcheetah-moiq does not hold the runs beta0-seed1 (--no-train)" in error
     run("table1.py", tmp_path, "--archive", str(archive), "--no-train", "--betas", "0.5", "--out", str(tmp_path / "b"))
-    with open(tmp_path / "b" / "table1.csv") as f:  # beta 0.5's rows, from its runs alone
-        assert [r["beta"] for r in csv.DictReader(f)] == ["0.5"] * 3
+    run("table3.py", tmp_path, "--archive", str(archive), "--no-train", "--betas", "0.5", "--out", str(tmp_path / "b"))
+    for table in ("table1", "table3"):  # beta 0.5's rows, from its runs alone
+        with open(tmp_path / "b" / f"{table}.csv") as f:
+            assert [r["beta"] for r in csv.DictReader(f)] == ["0.5"] * 3, table
     printed = run("table2.py", tmp_path, "--archive", str(archive))
     assert "trained moiq (quick protocol) beta0-seed1 in" in printed and printed.count("trained moiq") == 1
     assert (archive / "mo-halfcheetah-moiq" / "beta0-seed1" / "result.json").exists()
