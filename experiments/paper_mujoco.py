@@ -188,7 +188,7 @@ def train_runs(env: str, args, name: str, config: Config, betas, seeds) -> list[
             save_result(jax.device_get(result.run(i)), kept / run)
             trained.append(run)
         print(f"{env}: trained {name} ({protocol_of(args)} protocol) {', '.join(run_names(None if beta is None else [beta], missing))} "
-              f"in {result.seconds:.0f}s (kept in {kept})")
+              f"({result.seconds:.0f}s in this call, which resumes a cut sweep; kept in {kept})")
     return trained
 
 

@@ -33,7 +33,7 @@ def outputs(tmp_path_factory):
 def test_one_sweep_serves_every_script(outputs):
     tmp_path, printed = outputs
     for beta in ("5", "0", "0.5"):  # one checkpointed sweep per beta
-        assert f"trained moiq (quick protocol) beta{beta}-seed0, beta{beta}-seed1 in" in printed["table1.py"]
+        assert f"trained moiq (quick protocol) beta{beta}-seed0, beta{beta}-seed1 (" in printed["table1.py"]
         assert (tmp_path / "cache" / "quick" / f"mo-halfcheetah-moiq-beta{beta}-seeds0-1" / "sweep.json").exists()
     assert all("trained" not in printed[s] for s in ("table2.py", "table3.py", "figure3.py"))  # read from the archive
     kept = tmp_path / "cache" / "quick" / "runs" / "mo-halfcheetah-moiq"
@@ -100,7 +100,7 @@ def test_a_missing_run_is_trained_alone_and_a_foreign_one_refused(outputs):
         with open(tmp_path / "b" / f"{table}.csv") as f:
             assert [r["beta"] for r in csv.DictReader(f)] == ["0.5"] * 3, table
     printed = run("table2.py", tmp_path, "--archive", str(archive))
-    assert "trained moiq (quick protocol) beta0-seed1 in" in printed and printed.count("trained moiq") == 1
+    assert "trained moiq (quick protocol) beta0-seed1 (" in printed and printed.count("trained moiq") == 1
     assert (archive / "mo-halfcheetah-moiq" / "beta0-seed1" / "result.json").exists()
     record = archive / "mo-halfcheetah-moiq" / "beta5-seed0" / "result.json"
     saved = json.loads(record.read_text())
