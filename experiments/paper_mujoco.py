@@ -136,9 +136,18 @@ def archive_of(args) -> pathlib.Path:
     return pathlib.Path(args.cache) / "quick" / "runs" if protocol == "quick" else pathlib.Path(f"results/mujoco_{protocol}/runs")
 
 
-def run_names(betas, seeds) -> list[str]:
-    """The runs of a ``betas`` (None: the algorithm has no beta) x ``seeds`` grid, beta outermost: ``beta5-seed0``."""
-    return run_dir_names(run_grid({"seed": seeds} if betas is None else {"beta": list(betas), "seed": seeds}))
+def run_configs(config: Config, betas, seeds) -> dict[str, Config]:
+    """Each run of a ``betas`` (None: the algorithm has no beta) x ``seeds`` grid, beta outermost, by its name
+    (``beta5-seed0``): ``config`` with the run's swept values."""
+    grid = run_grid({"seed": list(seeds)} if betas is None else {"beta": list(betas), "seed": list(seeds)})
+    return {run: config.replace(**{k: v[i].item() for k, v in grid.items()}) for i, run in enumerate(run_dir_names(grid))}
+
+
+def set_up_host(seeds) -> None:
+    """Before JAX's first computation: each seed's runs on a CPU device of their own, and the persistent
+    compilation cache (each seed's evaluation, and every rerun, loads the same programs)."""
+    split_cpu_into_devices(len(seeds))
+    use_compilation_cache()
 
 
 def demos_digest(config: Config) -> str:
@@ -168,26 +177,27 @@ def train_runs(env: str, args, name: str, config: Config, betas, seeds) -> list[
     that the archive (``archive_of``) does not hold yet, one checkpointed sweep per beta in
     ``<cache>/<protocol>/<env>-<name>-beta<b>-seeds<s1-s2..>`` (the same call after a crash resumes it there),
     and keep each run in ``<archive>/<env>-<name>/<run>`` when its sweep ends. Returns the runs trained."""
-    split_cpu_into_devices(len(seeds))  # (before JAX's first computation) each seed's runs on a CPU device of their own
-    use_compilation_cache()  # each seed's evaluation, and every rerun, loads the same programs
+    set_up_host(seeds)
     kept = archive_of(args) / f"{env}-{name}"
     trained = []
     for beta in [None] if betas is None else betas:
-        swept = {} if beta is None else {"beta": beta}
-        missing = [s for s in seeds if load_run(kept / run_names(None if beta is None else [beta], [s])[0],
-                                                config.replace(**swept, seed=s)) is None]
+        swept = {} if beta is None else {"beta": [beta]}
+        wanted = run_configs(config, swept.get("beta"), seeds)
+        missing = [run for run, c in wanted.items() if load_run(kept / run, c) is None]
         if not missing:
             continue
-        label = "-".join([env, name, *([f"beta{beta:g}"] if beta is not None else []), "seeds" + "-".join(map(str, missing))])
+        missing_seeds = [wanted[run].seed for run in missing]
+        label = "-".join([env, name, *([f"beta{beta:g}"] if swept else []), "seeds" + "-".join(map(str, missing_seeds))])
         run_dir = pathlib.Path(args.cache) / protocol_of(args) / label
-        result = moiq_jax.sweep(config, run_dir=str(run_dir), resume=(run_dir / SWEEP_FILE).exists(),
-                                **({} if beta is None else {"beta": [beta]}), seed=missing)
-        for i, run in enumerate(run_names(None if beta is None else [beta], missing)):
+        result = moiq_jax.sweep(config, run_dir=str(run_dir), resume=(run_dir / SWEEP_FILE).exists(), **swept,
+                                seed=missing_seeds)
+        digest = demos_digest(config)
+        for i, run in enumerate(missing):
             (kept / run).mkdir(parents=True, exist_ok=True)  # the digest first: save_result's record comes last
-            (kept / run / DIGEST_FILE).write_text(demos_digest(config) + "\n")
+            (kept / run / DIGEST_FILE).write_text(digest + "\n")
             save_result(jax.device_get(result.run(i)), kept / run)
             trained.append(run)
-        print(f"{env}: trained {name} ({protocol_of(args)} protocol) {', '.join(run_names(None if beta is None else [beta], missing))} "
+        print(f"{env}: trained {name} ({protocol_of(args)} protocol) {', '.join(missing)} "
               f"({result.seconds:.0f}s in this call, which resumes a cut sweep; kept in {kept})")
     return trained
 
@@ -198,18 +208,20 @@ def task_sweep(env: str, args, name: str = "moiq", config: Config | None = None,
     not kept yet are trained first (``train_runs``), so a sweep longer than a session is trained in parts
     (``experiments/train_runs.py``) and the tables read it without retraining."""
     seeds = list(range(2 if args.quick else args.seeds))
+    set_up_host(seeds)
     config = moiq_config(env, protocol_of(args)) if config is None else config
     kept = archive_of(args) / f"{env}-{name}"
-    grid = run_grid({"seed": seeds} if betas is None else {"beta": list(betas), "seed": seeds})
-    configs = [config.replace(**{k: v[i].item() for k, v in grid.items()}) for i in range(len(grid["seed"]))]
-    if args.no_train:
-        missing = [run for run, c in zip(run_names(betas, seeds), configs) if load_run(kept / run, c) is None]
-        if missing:
+    wanted = run_configs(config, betas, seeds)
+    runs = {run: load_run(kept / run, c) for run, c in wanted.items()}
+    missing = [run for run, result in runs.items() if result is None]
+    if missing:
+        if args.no_train:
             command = ("" if name != "moiq" else f"; `PYTHONPATH=. python experiments/train_runs.py --env {env} "
                        f"--protocol {protocol_of(args)} --betas ... --seed-list ...` trains them")
             raise SystemExit(f"{kept} does not hold the runs {', '.join(missing)} (--no-train){command}")
-    train_runs(env, args, name, config, betas, seeds)
-    return stack_results([load_run(kept / run, c) for run, c in zip(run_names(betas, seeds), configs)])
+        train_runs(env, args, name, config, betas, seeds)
+        runs.update({run: load_run(kept / run, wanted[run]) for run in missing})
+    return stack_results(list(runs.values()))
 
 
 def near_expert(value: float, expert: float) -> bool:
