@@ -42,6 +42,18 @@ def test_preference_order_is_descending_first_objective_first():
     assert demos.mean_returns()[2, 0] == pytest.approx(23.7)  # [0.9, 0.1]'s expert reaches the far treasure
 
 
+def test_some_experts_of_a_demos_file_load_alone(tmp_path):
+    path = str(tmp_path / "three.npz")
+    load_demonstrations(TINY.replace(preferences=ORDERS["descending"])).save(path)
+    every = load_demonstrations(TINY.replace(preferences=ORDERS["descending"], demos=path))
+    some = load_demonstrations(TINY.replace(preferences=((0.1, 0.9), (0.9, 0.1)), demos=path))
+    np.testing.assert_allclose(some.preferences, [[0.1, 0.9], [0.9, 0.1]])
+    np.testing.assert_array_equal(some.actions, np.asarray(every.actions)[[2, 0]])
+    np.testing.assert_array_equal(some.rewards, np.asarray(every.rewards)[[2, 0]])
+    with pytest.raises(ValueError, match=r"the configured \(0.2, 0.8\) is not one of them"):
+        load_demonstrations(TINY.replace(preferences=((0.9, 0.1), (0.2, 0.8)), demos=path))
+
+
 def test_metrics_csv_rows_are_the_same_under_the_same_labels(runs):
     by_label = {}
     for name, (config, result, rows) in runs.items():

@@ -29,16 +29,19 @@ def take_experts(demos: Demonstrations, index) -> Demonstrations:
 
 
 def match_preferences(recorded, given, source: str) -> np.ndarray:
-    """For each ``given`` preference, the index of the equal ``recorded`` one; raises if the sets differ."""
+    """For each ``given`` preference, the index of the equal ``recorded`` one: the given set may be any of the
+    recorded experts (all of them, in any order, or some, e.g. one expert's IQ-Learn); one not recorded raises."""
     recorded, given = np.asarray(recorded, np.float64), np.asarray(given, np.float64)
     index = []
     for w in given:
         close = np.flatnonzero(np.all(np.abs(recorded - w) <= 1e-5, axis=1)) if len(recorded) else []
-        if len(close) != 1 or len(recorded) != len(given):
+        if len(close) != 1:
             shown = sorted(map(tuple, np.round(recorded, 6).tolist()))
-            raise ValueError(f"the demos in {source} are of preferences {shown}, not the configured "
-                             f"{sorted(map(tuple, given.tolist()))}; set --preferences to match the file")
+            raise ValueError(f"the demos in {source} are of preferences {shown}; the configured "
+                             f"{tuple(np.round(w, 6).tolist())} is not one of them; set --preferences to some of them")
         index.append(int(close[0]))
+    if len(set(index)) != len(index):
+        raise ValueError(f"the configured preferences name one of the demos in {source} twice")
     return np.asarray(index)
 
 
@@ -51,8 +54,9 @@ def first_episodes(demos: Demonstrations, config: Config) -> Demonstrations:
 
 
 def load_demonstrations(config: Config, env=None) -> Demonstrations:
-    """The first ``num_demos`` episodes per expert of the configured demos file (its preferences must be the
-    config's, in any order), or fresh oracle demonstrations; experts in ``config.preferences`` order."""
+    """The first ``num_demos`` episodes per expert of the configured demos file (the experts of the config's
+    preferences, all of the file's or some, in any order), or fresh oracle demonstrations; experts in
+    ``config.preferences`` order."""
     if config.demos is None:
         sorted_prefs = np.asarray(config.preferences)[preference_order(config.preferences)]
         demos = oracle_demonstrations(config.env, sorted_prefs, config.num_demos, config.seed)
