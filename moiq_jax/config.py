@@ -71,6 +71,7 @@ class OffPolicyConfig:
 
 
 VALUE_TERMS = ("value", "v0")
+REGULARISERS = ("replay", "policy")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -82,6 +83,9 @@ class MOIQConfig:
     use_target: bool = _field(True, "V(s') from the target critic (no gradient); False: online critic, as IQ-Learn")
     value_term: str = _field("value", "IQ-Learn's second loss term: 'value', E_mix[V(s) - gamma V(s')] over expert and "
                                       "policy rows; 'v0', (1 - gamma) E_expert[V(s)] (IQ-Learn's hopper and walker)")
+    regulariser: str = _field("replay", "where the chi^2 regulariser reads the policy rows' rewards: 'replay', at their "
+                                        "stored actions; 'policy', at actions of the current policy (IQ-Learn's "
+                                        "code for MuJoCo)")
     preference_warmup_steps: int = _field(50_000, "moiq with infer_preferences: env steps per expert under the "
                                                   "initial spread preferences before the first preference step")
     preference_interval: int = _field(10_000, "moiq with infer_preferences: env steps per expert between "
@@ -93,6 +97,8 @@ class MOIQConfig:
         _positive(self, ("alpha_reg", "preference_interval"))
         if self.value_term not in VALUE_TERMS:
             raise ValueError(f"value_term must be one of {', '.join(VALUE_TERMS)}, got {self.value_term!r}")
+        if self.regulariser not in REGULARISERS:
+            raise ValueError(f"regulariser must be one of {', '.join(REGULARISERS)}, got {self.regulariser!r}")
         if self.preference_warmup_steps < 0:
             raise ValueError(f"preference_warmup_steps must be >= 0, got {self.preference_warmup_steps}")
 

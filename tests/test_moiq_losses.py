@@ -19,8 +19,9 @@ GAMMA, ALPHA_REG = 0.9, 0.5
 NETS = Networks(TwinVectorCritic((16, 16), 2), TanhGaussianActor((16, 16), 2))
 
 
-def critic_loss(critic, params, batches, prefs, beta, key, use_target=True, value_term="value"):
-    return moiq.critic_loss(critic, NETS, params, batches, prefs, beta, key, GAMMA, ALPHA_REG, use_target, value_term)
+def critic_loss(critic, params, batches, prefs, beta, key, use_target=True, value_term="value", regulariser="replay"):
+    return moiq.critic_loss(critic, NETS, params, batches, prefs, beta, key, GAMMA, ALPHA_REG, use_target, value_term,
+                            regulariser)
 
 
 def _learner(preferences, key=0):
@@ -43,42 +44,49 @@ def _batches(num_experts, per_expert, key=1):
     }
 
 
-def _iq_learn_reference(critic, params, alpha, batch, w, key, use_target=True, value_term="value"):
+def _iq_learn_reference(critic, params, alpha, batch, w, key, use_target=True, value_term="value",
+                        regulariser="replay"):
     """IQ-Learn's critic loss written out with scalar critics, as in its reference implementation: V(s')
     from the target critic, or with ``use_target=False`` from the online ``critic`` (with gradient); its
-    second term ``value`` (expert and policy states) or ``v0`` (expert states as initial ones)."""
+    second term ``value`` (expert and policy states) or ``v0`` (expert states as initial ones); its chi^2
+    regulariser on the policy rows at their stored actions, or (``"policy"``) at the current policy's action
+    (the one V(s) samples)."""
     current_key, next_key = jax.random.split(key)
     n = batch["obs"].shape[0]
     ws = jnp.tile(w, (n, 1))
 
-    def scalar_v(critic_params, obs, k):
+    def twins_and_v(critic_params, obs, k):
         action, log_prob = sample_tanh_gaussian(k, *NETS.actor.apply(params.actor, obs, ws))
-        return jnp.min(NETS.critic.apply(critic_params, obs, action, ws) @ w, axis=0) - alpha * log_prob
+        q = NETS.critic.apply(critic_params, obs, action, ws) @ w
+        return q, jnp.min(q, axis=0) - alpha * log_prob
 
-    v = scalar_v(critic, batch["obs"], current_key)
-    y = GAMMA * (1 - batch["done"]) * scalar_v(params.target_critic if use_target else critic,
-                                                     batch["next_obs"], next_key)
+    q_policy, v = twins_and_v(critic, batch["obs"], current_key)
+    y = GAMMA * (1 - batch["done"]) * twins_and_v(params.target_critic if use_target else critic,
+                                                        batch["next_obs"], next_key)[1]
     losses = []
-    for q in NETS.critic.apply(critic, batch["obs"], batch["action"], ws) @ w:
+    expert = batch["is_expert"]
+    for q, q_at_policy in zip(NETS.critic.apply(critic, batch["obs"], batch["action"], ws) @ w, q_policy):
         r = q - y
-        expert = batch["is_expert"]
         second = (v - y).mean() if value_term == "value" else (1 - GAMMA) * v[expert].mean()
-        losses.append(-r[expert].mean() + second + (r**2).mean() / (4 * ALPHA_REG))
+        regularised = jnp.where(expert, r, q_at_policy - y) if regulariser == "policy" else r
+        losses.append(-r[expert].mean() + second + (regularised**2).mean() / (4 * ALPHA_REG))
     return sum(losses) / 2
 
 
-@pytest.mark.parametrize("use_target,value_term", [(True, "value"), (False, "value"), (True, "v0"), (False, "v0")])
-def test_one_expert_loss_and_gradient_are_iq_learns_for_any_beta(use_target, value_term):
+@pytest.mark.parametrize("use_target,value_term,regulariser", [
+    (True, "value", "replay"), (False, "value", "replay"), (True, "v0", "replay"), (False, "v0", "replay"),
+    (True, "value", "policy"), (False, "value", "policy")])
+def test_one_expert_loss_and_gradient_are_iq_learns_for_any_beta(use_target, value_term, regulariser):
     prefs = jnp.array([[0.7, 0.3]])
     learner, _ = _learner(prefs)
     params, batches, key = learner.params, _batches(1, 8), jax.random.PRNGKey(5)
     reference = lambda critic: _iq_learn_reference(
         critic, params, 0.2, jax.tree_util.tree_map(lambda x: x[0], batches), prefs[0], jax.random.split(key, 1)[0],
-        use_target, value_term)
+        use_target, value_term, regulariser)
     expected, expected_grad = jax.value_and_grad(reference)(params.critic)
     for beta in (0.0, 5.0):  # one expert has no neighbours: the penalty vanishes
         (loss, metrics), grad = jax.value_and_grad(critic_loss, has_aux=True)(
-            params.critic, params, batches, prefs, beta, key, use_target, value_term)
+            params.critic, params, batches, prefs, beta, key, use_target, value_term, regulariser)
         np.testing.assert_allclose(loss, expected, rtol=1e-5)
         assert float(metrics["penalty"]) == 0.0
         for got, want in zip(jax.tree_util.tree_leaves(grad), jax.tree_util.tree_leaves(expected_grad)):

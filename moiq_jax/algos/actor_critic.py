@@ -19,14 +19,25 @@ from flax import struct
 from moiq_jax.networks import Networks, Params, tile
 
 
-def soft_value(nets: Networks, critic_params, actor_params, alpha, obs, preference, key):
-    """Vector soft value ``V(s, w) = Q_k(s, a', w) - alpha log pi(a' | s, w) 1`` with ``a' ~ pi(. | s, w)``,
-    where ``k`` is the twin whose scalarised value ``w . Q_k`` is smaller (clipped double Q). ``(N, d)``."""
+def policy_q(nets: Networks, critic_params, actor_params, obs, preference, key):
+    """Both twins' vector values at actions of the current policy: ``Q_k(s, a', w)`` with
+    ``a' ~ pi(. | s, w)``, ``(2, N, d)``, and ``log pi(a' | s, w)``, ``(N,)``."""
     action, log_prob = nets.sample(actor_params, obs, preference, key)
-    q = nets.critic.apply(critic_params, obs, action, tile(preference, obs.shape[0]))  # (2, N, d)
+    return nets.critic.apply(critic_params, obs, action, tile(preference, obs.shape[0])), log_prob
+
+
+def soft_value_of(q, log_prob, alpha, preference):
+    """``V(s, w) = Q_k(s, a', w) - alpha log pi(a' | s, w) 1`` from both twins' values ``q`` ``(2, N, d)`` at
+    policy actions a', where ``k`` is the twin whose scalarised value ``w . Q_k`` is smaller (clipped double Q)."""
     smaller = jnp.argmin(q @ preference, axis=0)  # (N,)
     q_min = jnp.take_along_axis(q, smaller[None, :, None], axis=0)[0]
     return q_min - alpha * log_prob[:, None]
+
+
+def soft_value(nets: Networks, critic_params, actor_params, alpha, obs, preference, key):
+    """Vector soft value ``V(s, w)`` (``soft_value_of``) with ``a' ~ pi(. | s, w)`` sampled by ``key``. ``(N, d)``."""
+    q, log_prob = policy_q(nets, critic_params, actor_params, obs, preference, key)
+    return soft_value_of(q, log_prob, alpha, preference)
 
 
 def actor_loss(actor_params, nets: Networks, params: Params, batches, preferences, key):

@@ -13,7 +13,7 @@ def _objective(config):
     def loss(critic_params, nets, params, batches, preferences, hyper, key):
         iq_losses, _, metrics = moiq.critic_terms(critic_params, nets, params, batches, preferences, key,
                                                   config.gamma, config.moiq.alpha_reg, config.moiq.use_target,
-                                                  config.moiq.value_term)
+                                                  config.moiq.value_term, config.moiq.regulariser)
         return jnp.sum(iq_losses), metrics
 
     return loss

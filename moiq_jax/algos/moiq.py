@@ -19,7 +19,7 @@ import functools
 import jax
 import jax.numpy as jnp
 
-from moiq_jax.algos.actor_critic import soft_value
+from moiq_jax.algos.actor_critic import policy_q, soft_value, soft_value_of
 from moiq_jax.algos.offpolicy import Algorithm, expert_and_policy_batch
 from moiq_jax.evaluate import pearson
 from moiq_jax.networks import Networks, Params, tile
@@ -40,18 +40,20 @@ def recovered_rewards(nets: Networks, critic_params, params: Params, alpha, batc
     return q - discounted_next, discounted_next
 
 
-def iq_learn_loss(reward, value, discounted_next, is_expert, alpha_reg, gamma, value_term="value"):
+def iq_learn_loss(reward, value, discounted_next, is_expert, alpha_reg, gamma, value_term="value",
+                  regularised=None):
     """IQ-Learn's critic loss on scalar rewards (chi^2 divergence, online): ``-E_expert[r] + second term +
-    E_mix[r^2] / (4 alpha_reg)`` over expert and policy samples, the second term ``E_mix[V(s) - gamma V(s')]``
+    E_mix[r'^2] / (4 alpha_reg)`` over expert and policy samples, the second term ``E_mix[V(s) - gamma V(s')]``
     (``value_term="value"``) or ``(1 - gamma) E_expert[V(s)]`` (``"v0"``, the expert states standing for the
-    initial ones, as IQ-Learn's code)."""
+    initial ones, as IQ-Learn's code). The regulariser reads ``r' = regularised`` (default ``reward``)."""
     expert = is_expert.astype(reward.dtype)
     expert_term = -jnp.sum(reward * expert) / jnp.sum(expert)
     if value_term == "v0":
         second = (1.0 - gamma) * jnp.sum(value * expert) / jnp.sum(expert)
     else:
         second = jnp.mean(value - discounted_next)
-    return expert_term + second + jnp.mean(reward**2) / (4.0 * alpha_reg)
+    regularised = reward if regularised is None else regularised
+    return expert_term + second + jnp.mean(regularised**2) / (4.0 * alpha_reg)
 
 
 def _norm(x):
@@ -76,14 +78,17 @@ def shared_batch(batches):
 
 
 def critic_terms(critic_params, nets: Networks, params: Params, batches, preferences, key, gamma, alpha_reg,
-                 use_target, value_term="value"):
+                 use_target, value_term="value", regulariser="replay"):
     """Eq. 9's terms: each expert's IQ-Learn loss ``[E]``, the consensus penalty, and metrics.
 
     Expert i's IQ-Learn term uses its own batch (expert and policy rows), averaged over the two twins as
-    IQ-Learn does. The penalty compares all experts' recovered rewards on one common batch
-    (``shared_batch``): comparing them on the union of all batches would cost E times the IQ terms' work
-    for a lower-variance estimate of the same expectation. Each expert's rewards on its own rows and on
-    the common rows come from one pass (one V(s') sample per row).
+    IQ-Learn does. Its chi^2 regulariser reads the recovered reward at the rows' own actions
+    (``regulariser="replay"``), or on the policy rows at actions of the current policy (``"policy"``, as
+    IQ-Learn's code for MuJoCo: it holds down Q where the actor acts, not only where it acted). The penalty
+    compares all experts' recovered rewards on one common batch (``shared_batch``): comparing them on the
+    union of all batches would cost E times the IQ terms' work for a lower-variance estimate of the same
+    expectation. Each expert's rewards on its own rows and on the common rows come from one pass (one V(s')
+    sample per row).
     """
     num_experts, per_expert = batches["is_expert"].shape
     penalised = num_experts > 1  # static: one expert has no neighbours
@@ -96,17 +101,24 @@ def critic_terms(critic_params, nets: Networks, params: Params, batches, prefere
         rows = own if common is None else jax.tree_util.tree_map(lambda a, b: jnp.concatenate([a, b]), own, common)
         rewards, discounted_next = recovered_rewards(nets, critic_params, params, alpha, rows, preference,
                                                      next_key, gamma, use_target)
-        value = soft_value(nets, critic_params, params.actor, alpha, own["obs"], preference, value_key)
-        return rewards[:, :per_expert], value, discounted_next[:per_expert], rewards[:, per_expert:]
+        q_policy, log_prob = policy_q(nets, critic_params, params.actor, own["obs"], preference, value_key)
+        value = soft_value_of(q_policy, log_prob, alpha, preference)
+        own_next = discounted_next[:per_expert]
+        return rewards[:, :per_expert], value, own_next, rewards[:, per_expert:], q_policy - own_next
 
-    own_rewards, values, discounted_next, common_rewards = jax.vmap(one_expert)(
+    own_rewards, values, discounted_next, common_rewards, policy_rewards = jax.vmap(one_expert)(
         {k: batches[k] for k in fields}, preferences, alphas, jax.random.split(key, num_experts)
-    )  # (E, 2, B, d), (E, B, d), (E, B, d), (E, 2, S, d)
+    )  # (E, 2, B, d), (E, B, d), (E, B, d), (E, 2, S, d), (E, 2, B, d)
     scalar_rewards = jnp.einsum("ekbd,ed->ekb", own_rewards, preferences)
+    if regulariser == "policy":
+        scalar_policy = jnp.einsum("ekbd,ed->ekb", policy_rewards, preferences)
+        regularised = jnp.where(batches["is_expert"][:, None], scalar_rewards, scalar_policy)
+    else:
+        regularised = scalar_rewards
     scalar_values, scalar_next = (jnp.einsum("ebd,ed->eb", x, preferences) for x in (values, discounted_next))
     loss = functools.partial(iq_learn_loss, alpha_reg=alpha_reg, gamma=gamma, value_term=value_term)
-    per_twin = jax.vmap(jax.vmap(loss, in_axes=(0, None, None, None)))(
-        scalar_rewards, scalar_values, scalar_next, batches["is_expert"]
+    per_twin = jax.vmap(jax.vmap(lambda r, v, n, e, g: loss(r, v, n, e, regularised=g), in_axes=(0, None, None, None, 0)))(
+        scalar_rewards, scalar_values, scalar_next, batches["is_expert"], regularised
     )  # (E, 2)
     iq_losses = jnp.mean(per_twin, axis=1)
     penalty = consensus_penalty(common_rewards) if penalised else jnp.zeros(())
@@ -117,10 +129,10 @@ def critic_terms(critic_params, nets: Networks, params: Params, batches, prefere
 
 
 def critic_loss(critic_params, nets: Networks, params: Params, batches, preferences, beta, key, gamma, alpha_reg,
-                use_target, value_term="value"):
+                use_target, value_term="value", regulariser="replay"):
     """Eq. 9 summed over experts plus ``beta`` times the consensus penalty; returns ``(loss, metrics)``."""
     iq_losses, penalty, metrics = critic_terms(critic_params, nets, params, batches, preferences, key, gamma,
-                                               alpha_reg, use_target, value_term)
+                                               alpha_reg, use_target, value_term, regulariser)
     return jnp.sum(iq_losses) + beta * penalty, {**metrics, "penalty": penalty}
 
 
@@ -148,7 +160,8 @@ def reward_correlations(config, nets: Networks):
 def _objective(config):
     def loss(critic_params, nets, params, batches, preferences, hyper, key):
         return critic_loss(critic_params, nets, params, batches, preferences, hyper["beta"], key, config.gamma,
-                           config.moiq.alpha_reg, config.moiq.use_target, config.moiq.value_term)
+                           config.moiq.alpha_reg, config.moiq.use_target, config.moiq.value_term,
+                           config.moiq.regulariser)
 
     return loss
 
