@@ -38,6 +38,7 @@ class OffPolicyConfig:
     batch_size: int = _field(256, "expert samples per expert and update, and as many policy samples")
     buffer_size: int = _field(100_000, "replay capacity per expert")
     hidden_sizes: tuple[int, ...] = _field((256, 256), "hidden layer widths of the actor and critics")
+    num_critics: int = _field(2, "critics: 2, SAC's clipped double Q; 1, IQ-Learn's single critic for MuJoCo")
     action_scale: float = _field(1.0, "policy actions clip(action_scale * tanh(u), -1, 1); see networks.sample_action")
     critic_lr: float = _field(3e-4, "Adam learning rate of the critics")
     actor_lr: float = _field(3e-5, "Adam learning rate of the actor")
@@ -55,6 +56,8 @@ class OffPolicyConfig:
         object.__setattr__(self, "hidden_sizes", tuple(int(h) for h in self.hidden_sizes))
 
     def validate(self) -> None:
+        if self.num_critics not in (1, 2):
+            raise ValueError(f"num_critics must be 1 or 2, got {self.num_critics}")
         _positive(self, ("total_steps", "num_envs", "updates_per_step", "batch_size", "buffer_size", "eval_interval",
                          "eval_episodes", "critic_lr", "actor_lr", "alpha_lr", "init_alpha", "action_scale"))
         if not self.hidden_sizes or min(self.hidden_sizes) < 1:

@@ -1,4 +1,4 @@
-"""Preference-conditioned networks: twin vector critics Q(s, a, w) in R^d and a tanh-Gaussian actor
+"""Preference-conditioned networks: vector critics Q_k(s, a, w) in R^d (a twin pair, or one) and a tanh-Gaussian actor
 pi(a | s, w), the ``Networks`` pair every off-policy algorithm trains, its ``Params``, and what builds
 them (``networks_of_sizes``, or ``networks_for`` from trained parameters). The preference w is an
 input, so one network serves every expert."""
@@ -40,11 +40,14 @@ class VectorCritic(nn.Module):
         return MLP(self.hidden_sizes, self.reward_dim)(jnp.concatenate([obs, action, preference], axis=-1))
 
 
-class TwinVectorCritic(nn.Module):
-    """Two independent vector critics (as SAC's clipped double Q); output ``(2, ..., reward_dim)``."""
+class VectorCritics(nn.Module):
+    """``count`` independent vector critics, output ``(count, ..., reward_dim)``: two (SAC's clipped double Q,
+    the default) or one (IQ-Learn's single critic for MuJoCo); every loss takes the smaller or the mean over
+    them, so one critic is the same code."""
 
     hidden_sizes: Sequence[int]
     reward_dim: int
+    count: int = 2
 
     @nn.compact
     def __call__(self, obs, action, preference):
@@ -54,7 +57,7 @@ class TwinVectorCritic(nn.Module):
             split_rngs={"params": True},
             in_axes=None,
             out_axes=0,
-            axis_size=2,
+            axis_size=self.count,
         )
         return twins(self.hidden_sizes, self.reward_dim)(obs, action, preference)
 
@@ -112,7 +115,7 @@ class Networks(NamedTuple):
     """The critic and actor modules; ``action_scale`` widens the actor's tanh range before the env's clip
     (see ``sample_action``)."""
 
-    critic: TwinVectorCritic
+    critic: VectorCritics
     actor: TanhGaussianActor
     action_scale: float = 1.0
 
@@ -129,7 +132,7 @@ class Networks(NamedTuple):
 
 @struct.dataclass
 class Params:
-    """critic, target_critic: twin vector critics; actor; log_alpha: ``[E]`` one temperature per expert;
+    """critic, target_critic: the vector critics; actor; log_alpha: ``[E]`` one temperature per expert;
     action_scale (static): the actor's, so ``networks_for`` can rebuild the policy from the parameters."""
 
     critic: Any
@@ -140,25 +143,34 @@ class Params:
 
 
 def _layer_sizes(module_params) -> list[tuple[int, int]]:
-    """(inputs, outputs) of each Dense layer of an MLP's parameters, in order (a twin axis is ignored)."""
-    mlp = module_params
-    while "Dense_0" not in mlp:  # {"params": {"MLP_0": {...}}}, or with the twins' vmap level between
-        (mlp,) = mlp.values()
+    """(inputs, outputs) of each Dense layer of an MLP's parameters, in order (a critics axis is ignored)."""
+    mlp = _dense_layers(module_params)
     layers = sorted(mlp, key=lambda name: int(name.split("_")[1]))
     return [tuple(mlp[name]["kernel"].shape[-2:]) for name in layers]
 
 
-def networks_of_sizes(hidden_sizes, reward_dim: int, action_size: int, action_scale: float = 1.0) -> Networks:
-    """Fresh critic and actor modules of the given layer widths for an env's reward and action sizes."""
-    return Networks(TwinVectorCritic(hidden_sizes, reward_dim), TanhGaussianActor(hidden_sizes, action_size),
+def _dense_layers(module_params) -> dict:
+    """The ``Dense_<i>`` entries of an MLP's parameters, below the module and critics levels."""
+    mlp = module_params
+    while "Dense_0" not in mlp:  # {"params": {"MLP_0": {...}}}, or with the critics' vmap level between
+        (mlp,) = mlp.values()
+    return mlp
+
+
+def networks_of_sizes(hidden_sizes, reward_dim: int, action_size: int, action_scale: float = 1.0,
+                      num_critics: int = 2) -> Networks:
+    """Fresh critics and actor modules of the given layer widths for an env's reward and action sizes."""
+    return Networks(VectorCritics(hidden_sizes, reward_dim, num_critics), TanhGaussianActor(hidden_sizes, action_size),
                     action_scale)
 
 
 def networks_for(params: Params) -> Networks:
-    """The networks ``params`` belong to, read from their shapes: hidden sizes, action and reward sizes."""
+    """The networks ``params`` belong to, read from their shapes: hidden sizes, action and reward sizes, and
+    the number of critics."""
     actor_layers, critic_layers = _layer_sizes(params.actor), _layer_sizes(params.critic)
     hidden = tuple(out for _, out in actor_layers[:-1])
-    return networks_of_sizes(hidden, critic_layers[-1][1], actor_layers[-1][1] // 2, params.action_scale)
+    num_critics = _dense_layers(params.critic)["Dense_0"]["kernel"].shape[0]
+    return networks_of_sizes(hidden, critic_layers[-1][1], actor_layers[-1][1] // 2, params.action_scale, num_critics)
 
 
 def observation_size(params: Params) -> int:

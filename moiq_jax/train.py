@@ -101,7 +101,7 @@ def reward_correlations(params, config: Config, demos: Demonstrations | None = N
     data = {k: jnp.asarray(v) for k, v in expert_transitions(load_demonstrations(config, env) if demos is None
                                                               else demos).items()}
     nets = networks_of_sizes(config.offpolicy.hidden_sizes, env.reward_dim, env.action_size,
-                             config.offpolicy.action_scale)
+                             config.offpolicy.action_scale, config.offpolicy.num_critics)
     metrics = algorithm.reward_metrics(config, nets)
     preferences = jnp.asarray(config.preferences, jnp.float32)
     key = jax.random.PRNGKey(seed)

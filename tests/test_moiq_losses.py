@@ -10,25 +10,27 @@ from moiq_jax.algos import actor_critic, moiq
 from moiq_jax.networks import (
     Networks,
     TanhGaussianActor,
-    TwinVectorCritic,
+    VectorCritics,
     sample_tanh_gaussian,
     tanh_gaussian_log_prob,
 )
 
 GAMMA, ALPHA_REG = 0.9, 0.5
-NETS = Networks(TwinVectorCritic((16, 16), 2), TanhGaussianActor((16, 16), 2))
+NETS = Networks(VectorCritics((16, 16), 2), TanhGaussianActor((16, 16), 2))
+ONE_CRITIC = Networks(VectorCritics((16, 16), 2, count=1), TanhGaussianActor((16, 16), 2))
 
 
-def critic_loss(critic, params, batches, prefs, beta, key, use_target=True, value_term="value", regulariser="replay"):
-    return moiq.critic_loss(critic, NETS, params, batches, prefs, beta, key, GAMMA, ALPHA_REG, use_target, value_term,
+def critic_loss(critic, params, batches, prefs, beta, key, use_target=True, value_term="value", regulariser="replay",
+                nets=NETS):
+    return moiq.critic_loss(critic, nets, params, batches, prefs, beta, key, GAMMA, ALPHA_REG, use_target, value_term,
                             regulariser)
 
 
-def _learner(preferences, key=0):
+def _learner(preferences, key=0, nets=NETS):
     opt = actor_critic.Optimisers(optax.adam(1e-3), optax.adam(1e-3), optax.adam(1e-3))
-    learner = actor_critic.init_learner(NETS, opt, jax.random.PRNGKey(key), 3, 2, preferences, init_alpha=0.2)
+    learner = actor_critic.init_learner(nets, opt, jax.random.PRNGKey(key), 3, 2, preferences, init_alpha=0.2)
     # A target critic different from the online one, so the test sees which is used where.
-    target = NETS.critic.init(jax.random.PRNGKey(key + 100), jnp.zeros((1, 3)), jnp.zeros((1, 2)), preferences[:1])
+    target = nets.critic.init(jax.random.PRNGKey(key + 100), jnp.zeros((1, 3)), jnp.zeros((1, 2)), preferences[:1])
     return learner.replace(params=learner.params.replace(target_critic=target)), opt
 
 
@@ -45,7 +47,7 @@ def _batches(num_experts, per_expert, key=1):
 
 
 def _iq_learn_reference(critic, params, alpha, batch, w, key, use_target=True, value_term="value",
-                        regulariser="replay"):
+                        regulariser="replay", nets=NETS):
     """IQ-Learn's critic loss written out with scalar critics, as in its reference implementation: V(s')
     from the target critic, or with ``use_target=False`` from the online ``critic`` (with gradient); its
     second term ``value`` (expert and policy states) or ``v0`` (expert states as initial ones); its chi^2
@@ -56,8 +58,8 @@ def _iq_learn_reference(critic, params, alpha, batch, w, key, use_target=True, v
     ws = jnp.tile(w, (n, 1))
 
     def twins_and_v(critic_params, obs, k):
-        action, log_prob = sample_tanh_gaussian(k, *NETS.actor.apply(params.actor, obs, ws))
-        q = NETS.critic.apply(critic_params, obs, action, ws) @ w
+        action, log_prob = sample_tanh_gaussian(k, *nets.actor.apply(params.actor, obs, ws))
+        q = nets.critic.apply(critic_params, obs, action, ws) @ w
         return q, jnp.min(q, axis=0) - alpha * log_prob
 
     q_policy, v = twins_and_v(critic, batch["obs"], current_key)
@@ -65,28 +67,29 @@ def _iq_learn_reference(critic, params, alpha, batch, w, key, use_target=True, v
                                                         batch["next_obs"], next_key)[1]
     losses = []
     expert = batch["is_expert"]
-    for q, q_at_policy in zip(NETS.critic.apply(critic, batch["obs"], batch["action"], ws) @ w, q_policy):
+    for q, q_at_policy in zip(nets.critic.apply(critic, batch["obs"], batch["action"], ws) @ w, q_policy):
         r = q - y
         second = (v - y).mean() if value_term == "value" else (1 - GAMMA) * v[expert].mean()
         regularised = jnp.where(expert, r, q_at_policy - y) if regulariser == "policy" else r
         losses.append(-r[expert].mean() + second + (regularised**2).mean() / (4 * ALPHA_REG))
-    return sum(losses) / 2
+    return sum(losses) / len(losses)
 
 
-@pytest.mark.parametrize("use_target,value_term,regulariser", [
-    (True, "value", "replay"), (False, "value", "replay"), (True, "v0", "replay"), (False, "v0", "replay"),
-    (True, "value", "policy"), (False, "value", "policy")])
-def test_one_expert_loss_and_gradient_are_iq_learns_for_any_beta(use_target, value_term, regulariser):
+@pytest.mark.parametrize("use_target,value_term,regulariser,nets", [
+    (True, "value", "replay", NETS), (False, "value", "replay", NETS), (True, "v0", "replay", NETS),
+    (False, "v0", "replay", NETS), (True, "value", "policy", NETS), (False, "value", "policy", NETS),
+    (True, "value", "policy", ONE_CRITIC)])
+def test_one_expert_loss_and_gradient_are_iq_learns_for_any_beta(use_target, value_term, regulariser, nets):
     prefs = jnp.array([[0.7, 0.3]])
-    learner, _ = _learner(prefs)
+    learner, _ = _learner(prefs, nets=nets)
     params, batches, key = learner.params, _batches(1, 8), jax.random.PRNGKey(5)
     reference = lambda critic: _iq_learn_reference(
         critic, params, 0.2, jax.tree_util.tree_map(lambda x: x[0], batches), prefs[0], jax.random.split(key, 1)[0],
-        use_target, value_term, regulariser)
+        use_target, value_term, regulariser, nets)
     expected, expected_grad = jax.value_and_grad(reference)(params.critic)
     for beta in (0.0, 5.0):  # one expert has no neighbours: the penalty vanishes
         (loss, metrics), grad = jax.value_and_grad(critic_loss, has_aux=True)(
-            params.critic, params, batches, prefs, beta, key, use_target, value_term, regulariser)
+            params.critic, params, batches, prefs, beta, key, use_target, value_term, regulariser, nets)
         np.testing.assert_allclose(loss, expected, rtol=1e-5)
         assert float(metrics["penalty"]) == 0.0
         for got, want in zip(jax.tree_util.tree_leaves(grad), jax.tree_util.tree_leaves(expected_grad)):

@@ -90,6 +90,22 @@ def test_validate_rejects_negative_beta():
         validate(TINY.replace(beta=-1.0))
     with pytest.raises(ValueError, match="value_term must be one of value, v0, got 'v1'"):
         validate(TINY.replace(value_term="v1"))
+    with pytest.raises(ValueError, match="regulariser must be one of replay, policy, got 'expert'"):
+        validate(TINY.replace(regulariser="expert"))
+    with pytest.raises(ValueError, match="num_critics must be 1 or 2, got 3"):
+        validate(TINY.replace(num_critics=3))
+
+
+def test_one_critic_with_the_policy_regulariser_trains_and_evaluates(demos):
+    """IQ-Learn's MuJoCo recipe (one critic, the regulariser at the policy's actions, V(s') from the target):
+    its parameters hold one critic, and evaluating them rebuilds that network and reproduces the run's own
+    evaluation of its best model."""
+    config = TINY.replace(num_critics=1, regulariser="policy", use_target=True)
+    result = moiq_jax.train(config, demos, log=None)
+    assert jax.tree_util.tree_leaves(result.best_params.critic)[0].shape[0] == 1
+    assert np.all(np.isfinite(result.history["critic_loss"]))
+    returns = moiq_jax.evaluate(result.best_params, "cdst", config.preferences)
+    np.testing.assert_allclose(returns, result.history["eval_return"][_best_evaluation(result)], rtol=1e-4, atol=1e-4)
 
 
 @pytest.fixture(scope="module")

@@ -3,20 +3,34 @@ import jax.numpy as jnp
 import numpy as np
 
 from moiq_jax.networks import (
+    Params,
     TanhGaussianActor,
-    TwinVectorCritic,
+    VectorCritics,
+    networks_for,
+    networks_of_sizes,
     sample_tanh_gaussian,
     tanh_gaussian_log_prob,
 )
 
 
 def test_twin_critic_shapes_and_independent_twins():
-    critic = TwinVectorCritic(hidden_sizes=(8, 8), reward_dim=2)
+    critic = VectorCritics(hidden_sizes=(8, 8), reward_dim=2)
     obs, act, w = jnp.ones((5, 3)), jnp.zeros((5, 2)), jnp.full((5, 2), 0.5)
     params = critic.init(jax.random.PRNGKey(0), obs, act, w)
     q = critic.apply(params, obs, act, w)
     assert q.shape == (2, 5, 2)
     assert not np.allclose(q[0], q[1])  # the two critics start from different weights
+
+
+def test_one_critic_and_networks_read_back_from_parameters():
+    for num_critics in (1, 2):
+        nets = networks_of_sizes((8, 4), 3, 2, action_scale=1.5, num_critics=num_critics)
+        critic = nets.critic.init(jax.random.PRNGKey(0), jnp.ones((5, 4)), jnp.zeros((5, 2)), jnp.full((5, 3), 1 / 3))
+        assert nets.critic.apply(critic, jnp.ones((5, 4)), jnp.zeros((5, 2)), jnp.full((5, 3), 1 / 3)).shape == \
+            (num_critics, 5, 3)
+        actor = nets.actor.init(jax.random.PRNGKey(1), jnp.ones((1, 4)), jnp.full((1, 3), 1 / 3))
+        params = Params(critic=critic, target_critic=critic, actor=actor, log_alpha=jnp.zeros(1), action_scale=1.5)
+        assert networks_for(params) == nets
 
 
 def test_actor_conditions_on_preference():

@@ -150,7 +150,7 @@ def train_seeds(config: Config, seeds, demos: Demonstrations | None = None, log=
     candidates = jnp.asarray(simplex_grid(env.reward_dim, resolution))
     canonical_demos = demo_behaviour[order]
     c, m = config.offpolicy, config.moiq
-    nets = networks_of_sizes(c.hidden_sizes, env.reward_dim, env.action_size, c.action_scale)  # the trainer's
+    nets = networks_of_sizes(c.hidden_sizes, env.reward_dim, env.action_size, c.action_scale, c.num_critics)  # the trainer's
 
     @jax.jit
     @jax.vmap

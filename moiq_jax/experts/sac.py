@@ -70,7 +70,7 @@ def record_demonstrations(config: Config, actor_params, num_demos: int = 10, see
     model per ``config.preferences``) in the absorbing-state env, all episodes at once."""
     env = config.make_env(absorbing=True)
     c = config.offpolicy
-    nets = networks_of_sizes(c.hidden_sizes, env.reward_dim, env.action_size, c.action_scale)
+    nets = networks_of_sizes(c.hidden_sizes, env.reward_dim, env.action_size, c.action_scale, c.num_critics)
     preferences = jnp.asarray(config.preferences, jnp.float32)
     horizon = env.episode_length
 
