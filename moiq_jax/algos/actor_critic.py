@@ -20,15 +20,16 @@ from moiq_jax.networks import Networks, Params, tile
 
 
 def policy_q(nets: Networks, critic_params, actor_params, obs, preference, key):
-    """Both twins' vector values at actions of the current policy: ``Q_k(s, a', w)`` with
-    ``a' ~ pi(. | s, w)``, ``(2, N, d)``, and ``log pi(a' | s, w)``, ``(N,)``."""
+    """Every critic's vector values at actions of the current policy: ``Q_k(s, a', w)`` with
+    ``a' ~ pi(. | s, w)``, ``(num_critics, N, d)``, and ``log pi(a' | s, w)``, ``(N,)``."""
     action, log_prob = nets.sample(actor_params, obs, preference, key)
     return nets.critic.apply(critic_params, obs, action, tile(preference, obs.shape[0])), log_prob
 
 
 def soft_value_of(q, log_prob, alpha, preference):
-    """``V(s, w) = Q_k(s, a', w) - alpha log pi(a' | s, w) 1`` from both twins' values ``q`` ``(2, N, d)`` at
-    policy actions a', where ``k`` is the twin whose scalarised value ``w . Q_k`` is smaller (clipped double Q)."""
+    """``V(s, w) = Q_k(s, a', w) - alpha log pi(a' | s, w) 1`` from the critics' values ``q`` ``(num_critics, N,
+    d)`` at policy actions a', where ``k`` is the critic whose scalarised value ``w . Q_k`` is smallest (clipped
+    double Q; with one critic, that one)."""
     smaller = jnp.argmin(q @ preference, axis=0)  # (N,)
     q_min = jnp.take_along_axis(q, smaller[None, :, None], axis=0)[0]
     return q_min - alpha * log_prob[:, None]
