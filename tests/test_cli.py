@@ -82,7 +82,8 @@ def test_bad_demos_files_are_clear_errors(tmp_path):
         (["--demos", str(tmp_path / "corrupt.npz")], "is corrupt or not a .npz written by moiq_jax"),
         (["--demos", str(tmp_path / "nan.npz")], "obs holds NaN or inf values"),
         (["--demos", str(mini), "--preferences", "0.9,0.1", "0.1,0.9"], "the env needs action_size 2"),
-        (["--demos", str(good), "--preferences", "0.8,0.2", "0.5,0.5", "0.1,0.9"], "set --preferences to match"),
+        (["--demos", str(good), "--preferences", "0.8,0.2", "0.5,0.5", "0.1,0.9"],
+         "the configured (0.8, 0.2) is not one of them; set --preferences to some of them"),
     ]
     for i, (args, message) in enumerate(cases):
         out = moiq("train", *args, "--run-dir", str(tmp_path / f"run{i}"), "--no-progress")
