@@ -189,8 +189,8 @@ def train_runs(env: str, args, name: str, config: Config, betas, seeds) -> list[
         missing_seeds = [wanted[run].seed for run in missing]
         label = "-".join([env, name, *([f"beta{beta:g}"] if swept else []), "seeds" + "-".join(map(str, missing_seeds))])
         run_dir = pathlib.Path(args.cache) / protocol_of(args) / label
-        result = moiq_jax.sweep(config, run_dir=str(run_dir), resume=(run_dir / SWEEP_FILE).exists(), **swept,
-                                seed=missing_seeds)
+        resumed = (run_dir / SWEEP_FILE).exists()
+        result = moiq_jax.sweep(config, run_dir=str(run_dir), resume=resumed, **swept, seed=missing_seeds)
         digest = demos_digest(config)
         for i, run in enumerate(missing):
             (kept / run).mkdir(parents=True, exist_ok=True)  # the digest first: save_result's record comes last
@@ -198,7 +198,7 @@ def train_runs(env: str, args, name: str, config: Config, betas, seeds) -> list[
             save_result(jax.device_get(result.run(i)), kept / run)
             trained.append(run)
         print(f"{env}: trained {name} ({protocol_of(args)} protocol) {', '.join(missing)} "
-              f"({result.seconds:.0f}s in this call, which resumes a cut sweep; kept in {kept})")
+              f"({result.seconds:.0f}s in this call{', which resumed a cut sweep' if resumed else ''}; kept in {kept})")
     return trained
 
 
