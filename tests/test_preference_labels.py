@@ -52,6 +52,8 @@ def test_some_experts_of_a_demos_file_load_alone(tmp_path):
     np.testing.assert_array_equal(some.rewards, np.asarray(every.rewards)[[2, 0]])
     with pytest.raises(ValueError, match=r"the configured \(0.2, 0.8\) is not one of them"):
         load_demonstrations(TINY.replace(preferences=((0.9, 0.1), (0.2, 0.8)), demos=path))
+    with pytest.raises(ValueError, match="name one of the demos in .* twice"):
+        load_demonstrations(TINY.replace(preferences=((0.9, 0.1), (0.9, 0.1)), demos=path))
 
 
 def test_metrics_csv_rows_are_the_same_under_the_same_labels(runs):

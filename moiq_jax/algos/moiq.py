@@ -40,19 +40,18 @@ def recovered_rewards(nets: Networks, critic_params, params: Params, alpha, batc
     return q - discounted_next, discounted_next
 
 
-def iq_learn_loss(reward, value, discounted_next, is_expert, alpha_reg, gamma, value_term="value",
-                  regularised=None):
+def iq_learn_loss(reward, value, discounted_next, is_expert, regularised, alpha_reg, gamma, value_term="value"):
     """IQ-Learn's critic loss on scalar rewards (chi^2 divergence, online): ``-E_expert[r] + second term +
     E_mix[r'^2] / (4 alpha_reg)`` over expert and policy samples, the second term ``E_mix[V(s) - gamma V(s')]``
     (``value_term="value"``) or ``(1 - gamma) E_expert[V(s)]`` (``"v0"``, the expert states standing for the
-    initial ones, as IQ-Learn's code). The regulariser reads ``r' = regularised`` (default ``reward``)."""
+    initial ones, as IQ-Learn's code); ``r' = regularised`` is ``reward``, or on the policy rows the reward at
+    the current policy's actions."""
     expert = is_expert.astype(reward.dtype)
     expert_term = -jnp.sum(reward * expert) / jnp.sum(expert)
     if value_term == "v0":
         second = (1.0 - gamma) * jnp.sum(value * expert) / jnp.sum(expert)
     else:
         second = jnp.mean(value - discounted_next)
-    regularised = reward if regularised is None else regularised
     return expert_term + second + jnp.mean(regularised**2) / (4.0 * alpha_reg)
 
 
@@ -110,14 +109,13 @@ def critic_terms(critic_params, nets: Networks, params: Params, batches, prefere
         {k: batches[k] for k in fields}, preferences, alphas, jax.random.split(key, num_experts)
     )  # (E, 2, B, d), (E, B, d), (E, B, d), (E, 2, S, d), (E, 2, B, d)
     scalar_rewards = jnp.einsum("ekbd,ed->ekb", own_rewards, preferences)
+    regularised = scalar_rewards
     if regulariser == "policy":
         scalar_policy = jnp.einsum("ekbd,ed->ekb", policy_rewards, preferences)
         regularised = jnp.where(batches["is_expert"][:, None], scalar_rewards, scalar_policy)
-    else:
-        regularised = scalar_rewards
     scalar_values, scalar_next = (jnp.einsum("ebd,ed->eb", x, preferences) for x in (values, discounted_next))
     loss = functools.partial(iq_learn_loss, alpha_reg=alpha_reg, gamma=gamma, value_term=value_term)
-    per_twin = jax.vmap(jax.vmap(lambda r, v, n, e, g: loss(r, v, n, e, regularised=g), in_axes=(0, None, None, None, 0)))(
+    per_twin = jax.vmap(jax.vmap(loss, in_axes=(0, None, None, None, 0)))(
         scalar_rewards, scalar_values, scalar_next, batches["is_expert"], regularised
     )  # (E, 2)
     iq_losses = jnp.mean(per_twin, axis=1)
