@@ -2,9 +2,10 @@
 ``paper_mujoco.MOIQ_BETAS``)
 for the 19 preferences [1 - 0.05k, 0.05k], beside the experts', with the hypervolume of each.
 
-    PYTHONPATH=. python experiments/figure3.py [--envs ...] [--seeds 3] [--protocol cpu|paper] [--quick] [--out DIR]
+    PYTHONPATH=. python experiments/figure3.py [--envs ...] [--seeds 3] [--betas 5 0.5] [--protocol cpu|paper] [--quick]
+        [--no-train] [--out DIR]
 
-Uses the same cached sweeps as table1.py; writes ``figure3.png``, ``figure3.csv`` (every seed and preference)
+Uses the same cached sweeps as table1.py (``--betas``: only those betas' runs); writes ``figure3.png``, ``figure3.csv`` (every seed and preference)
 and ``figure3.json`` (hypervolumes). The hypervolume reference point is the component-wise minimum of all the
 points compared for that task (experts' and policies'), so the two hypervolumes measure the same area.
 """
@@ -31,6 +32,7 @@ TWO_OBJECTIVES = tuple(env for env in paper.ENVS if len(paper.moiq_config(env).p
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     paper.add_arguments(parser)
+    paper.add_betas_argument(parser)
     parser.set_defaults(envs=list(TWO_OBJECTIVES))
     parser.add_argument("--episodes", type=int, default=100, help="evaluation episodes per preference")
     parser.add_argument("--out", help="default: results/mujoco_<protocol>/figure3")
@@ -38,14 +40,15 @@ def main() -> None:
     out = paper.out_dir(args, "figure3")
     episodes = 1 if args.quick else args.episodes
     preferences = preference_sweep(19)
+    betas, sweep_betas = paper.row_and_sweep_betas(args)
 
     rows, summary = [], {}
     envs = [env for env in args.envs if env in TWO_OBJECTIVES]
     fig, axes = plt.subplots(1, len(envs), figsize=(5 * len(envs), 4), layout="constrained", squeeze=False)
     for ax, env in zip(axes[0], envs):
-        result = paper.task_sweep(env, args)
+        result = paper.task_sweep(env, args, betas=sweep_betas)
         returns = {beta: np.stack([moiq_jax.evaluate(result.run(r).best_params, env, preferences, episodes=episodes)
-                                   for r in paper.runs_of(result, beta)]) for beta in paper.MOIQ_BETAS}  # [seeds, 19, 2]
+                                   for r in paper.runs_of(result, beta)]) for beta in betas}  # [seeds, 19, 2]
         experts = paper.expert_returns(env)
         every = np.concatenate([r.reshape(-1, 2) for r in returns.values()] + [experts])
         reference = every.min(0) - 1e-6

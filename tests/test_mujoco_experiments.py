@@ -96,9 +96,14 @@ def test_a_missing_run_is_trained_alone_and_a_foreign_one_refused(outputs):
     assert "mo-halfcheetah-moiq does not hold the runs beta0-seed1 (--no-train)" in error
     run("table1.py", tmp_path, "--archive", str(archive), "--no-train", "--betas", "0.5", "--out", str(tmp_path / "b"))
     run("table3.py", tmp_path, "--archive", str(archive), "--no-train", "--betas", "0.5", "--out", str(tmp_path / "b"))
+    run("figure3.py", tmp_path, "--archive", str(archive), "--no-train", "--betas", "0.5", "--out", str(tmp_path / "b"))
     for table in ("table1", "table3"):  # beta 0.5's rows, from its runs alone
         with open(tmp_path / "b" / f"{table}.csv") as f:
             assert [r["beta"] for r in csv.DictReader(f)] == ["0.5"] * 3, table
+    with open(tmp_path / "b" / "figure3.csv") as f:
+        assert {r["beta"] for r in csv.DictReader(f)} == {"0.5"}
+    assert list(json.loads((tmp_path / "b" / "figure3.json").read_text())["mo-halfcheetah"]["hypervolume_per_seed"]) \
+        == ["beta=0.5"]
     printed = run("table2.py", tmp_path, "--archive", str(archive))
     assert "trained moiq (quick protocol) beta0-seed1 (" in printed and printed.count("trained moiq") == 1
     assert (archive / "mo-halfcheetah-moiq" / "beta0-seed1" / "result.json").exists()
