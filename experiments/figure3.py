@@ -57,14 +57,14 @@ def main() -> None:
                                                  for beta, by_seed in returns.items()}}
         for (beta, by_seed), marker in zip(returns.items(), "os"):
             for s, seed_returns in zip(result.runs["seed"][paper.runs_of(result, beta)], by_seed):
-                rows += [{"env": env, "beta": beta, "seed": int(s), "preference": np.round(w, 2).tolist(),
-                          "vector_return": r.round(2).tolist()} for w, r in zip(preferences, seed_returns)]
+                rows += [{"env": env, "beta": beta, "seed": int(s), "preference": [round(float(x), 2) for x in w],
+                          "vector_return": [round(float(x), 2) for x in r]} for w, r in zip(preferences, seed_returns)]
             mean = by_seed.mean(0)
             points = ax.scatter(mean[:, 1], mean[:, 0], c=preferences[:, 0], cmap="viridis", marker=marker,
                                 label=f"MOIQ beta={beta:g}, 19 preferences")
         ax.scatter(experts[:, 1], experts[:, 0], marker="*", s=160, c="k", label="experts")
         volumes = ", ".join(f"{beta} {np.mean(v):.3g}" for beta, v in summary[env]["hypervolume_per_seed"].items())
-        ax.set(title=f"{env}\nhypervolume MOIQ {volumes}, experts {summary[env]['expert_hypervolume']:.3g}",
+        ax.set(title=f"{env}: hypervolume\nMOIQ {volumes}\nexperts {summary[env]['expert_hypervolume']:.3g}",
                xlabel="objective 2 return", ylabel="objective 1 (x velocity) return")
         ax.legend(fontsize=7)
     fig.colorbar(points, ax=axes[0].tolist(), label="weight of objective 1")
