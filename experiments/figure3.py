@@ -1,18 +1,20 @@
 """The paper's Figure 3 on the two-objective MuJoCo tasks: the vector returns of MOIQ's best models (each beta of
-``paper_mujoco.MOIQ_BETAS``)
-for the 19 preferences [1 - 0.05k, 0.05k], beside the experts', with the hypervolume of each.
+``paper_mujoco.MOIQ_BETAS``, or of ``--betas``) for the 19 preferences [1 - 0.05k, 0.05k], beside the experts', with
+the hypervolume of each.
 
     PYTHONPATH=. python experiments/figure3.py [--envs ...] [--seeds 3] [--betas 5 0.5] [--protocol cpu|paper] [--quick]
         [--no-train] [--out DIR]
 
-Uses the same cached sweeps as table1.py (``--betas``: only those betas' runs); writes ``figure3.png``, ``figure3.csv`` (every seed and preference)
-and ``figure3.json`` (hypervolumes). The hypervolume reference point is the component-wise minimum of all the
-points compared for that task (experts' and policies'), so the two hypervolumes measure the same area.
+Uses the same cached sweeps as table1.py (``--betas``: only those betas' runs); writes ``figure3.png``,
+``figure3.csv`` (every seed and preference) and ``figure3.json`` (hypervolumes). The hypervolume reference point is
+the component-wise minimum of all the points compared for that task (experts' and policies'), so the two
+hypervolumes measure the same area.
 """
 
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 
 import matplotlib
@@ -55,7 +57,7 @@ def main() -> None:
         summary[env] = {"expert_hypervolume": round(hypervolume(experts, reference), 2), "reference": reference.tolist(),
                         "hypervolume_per_seed": {f"beta={beta:g}": [round(hypervolume(r, reference), 2) for r in by_seed]
                                                  for beta, by_seed in returns.items()}}
-        for (beta, by_seed), marker in zip(returns.items(), "os"):
+        for (beta, by_seed), marker in zip(returns.items(), itertools.cycle("os^D")):
             for s, seed_returns in zip(result.runs["seed"][paper.runs_of(result, beta)], by_seed):
                 rows += [{"env": env, "beta": beta, "seed": int(s), "preference": [round(float(x), 2) for x in w],
                           "vector_return": [round(float(x), 2) for x in r]} for w, r in zip(preferences, seed_returns)]
