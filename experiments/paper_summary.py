@@ -1,14 +1,18 @@
-"""The paper's Tables 1-3 over every environment with committed results, side by side with the paper's numbers,
-and per row whether the paper's claim holds here. Reads the experiments' committed outputs; trains nothing.
+"""The paper's Tables 1-3 and Figures 2-4 over every environment with committed results, side by side with the
+paper's numbers, and per row whether the paper's claim holds here. Reads the experiments' committed outputs;
+trains nothing.
 
     PYTHONPATH=. python experiments/paper_summary.py [--results results] [--out results/paper]
 
 Sources: continuous DST from ``results/cdst_moiq/`` (``best_models.csv``; beta 5 from ``beta_sweep_ups2.txt``;
-learning curves ``curves.npz``), the MuJoCo tasks from ``results/mujoco_<protocol>/table{1,2,3}/`` (every
-protocol found). Writes ``table1.csv``, ``table2.csv``, ``table3.csv`` and ``summary.md`` under ``--out``.
-The claims checked per row: Table 1, MOIQ's best model within 10% of the expert's return, ``moiq >= expert -
-0.1 |expert|`` (the paper's MOIQ column is, in 12 of 15 settings); Table 2, beta = 5 ahead of beta = 0 where the paper found it ahead
-(and behind where it found it behind); Table 3, a correlation at least the paper's.
+learning curves ``curves.npz``); each MuJoCo task, under every protocol found, from its per-task outputs
+``results/mujoco_<protocol>/<env>/<name>/`` where they exist, else from the all-task ones
+``results/mujoco_<protocol>/<name>/`` (``name``: table1-3, figure2-4). Writes ``table{1,2,3}.csv``,
+``figure{2,3,4}.csv`` and ``summary.md`` under ``--out``. The claims checked per row: Table 1, MOIQ's best model
+within 10% of the expert's return, ``moiq >= expert - 0.1 |expert|`` (the paper's MOIQ column is, in 12 of 15
+settings); Table 2, beta = 5 ahead of beta = 0 where the paper found it ahead (and behind where it found it
+behind); Table 3, a correlation at least the paper's; Figures 2 and 4, MOIQ at beta = 5 ending within 10% of the
+baseline or above it. Figure 3's hypervolumes are reported against the experts' (the paper gives no number).
 """
 
 from __future__ import annotations
@@ -74,26 +78,75 @@ def paper_preferences(env: str):
     return CDST_PREFERENCES if env == "cdst" else paper.moiq_config(env).preferences
 
 
+def outputs_by_env(folder: pathlib.Path, name: str) -> dict[str, dict]:
+    """Each MuJoCo task's record of output ``name`` (``table1`` ... ``figure4``) under one protocol's folder: its
+    per-task run ``<env>/<name>/<name>.json`` where there is one, else the all-task run ``<name>/<name>.json``."""
+    sources = {}
+    for env in paper.ENVS:
+        for path in (folder / env / name / f"{name}.json", folder / name / f"{name}.json"):
+            if path.exists():
+                sources[env] = json.loads(path.read_text())
+                break
+    return sources
+
+
+def env_rows(folder: pathlib.Path, name: str) -> list[dict]:
+    """The rows of output ``name`` under ``folder``, each task's from its source (``outputs_by_env``)."""
+    return [r for env, record in outputs_by_env(folder, name).items() for r in record.get("rows", []) if r["env"] == env]
+
+
 def mujoco_rows(results: pathlib.Path) -> tuple[list[dict], list[dict], list[dict]]:
     """Tables 1-3 rows of every MuJoCo task and protocol with committed outputs."""
     table1, table2, table3 = [], [], []
     for folder in sorted(results.glob("mujoco_*")):
-        read = {name: json.loads(path.read_text()) for name in ("table1", "table2", "table3")
-                if (path := folder / name / f"{name}.json").exists()}
         protocol = folder.name.removeprefix("mujoco_")
-        for r in read.get("table1", {}).get("rows", []):
+        for r in env_rows(folder, "table1"):
             table1.append(table1_row(r["env"], r["preference"], r["beta"], r["moiq_mean"], r["moiq_std"], r["expert"],
                                      r["seeds"], protocol))
-        for r in read.get("table2", {}).get("rows", []):
+        for r in env_rows(folder, "table2"):
             paper_better = r["paper_beta5"] > r["paper_beta0"]
             table2.append({"env": r["env"], "preference": r["preference"], "protocol": protocol, "beta0": r["beta0"],
                            "beta5": r["beta5"], "beta0.5": r.get("beta0.5"), "paper_beta0": r["paper_beta0"],
                            "paper_beta5": r["paper_beta5"], "claim_holds": (r["beta5"] > r["beta0"]) == paper_better})
-        for r in read.get("table3", {}).get("rows", []):
+        for r in env_rows(folder, "table3"):
             table3.append({"env": r["env"], "preference": r["preference"], "beta": r["beta"], "protocol": protocol,
                            "correlation": r["correlation"], "std": r["std"], "per_objective": r["per_objective"],
                            "paper": r["paper"], "claim_holds": r["correlation"] >= r["paper"]})
     return table1, table2, table3
+
+
+def learning_curve_rows(results: pathlib.Path, name: str, baseline: str) -> list[dict]:
+    """Figure 2 (``baseline`` GAIL) or Figure 4 (IQ-Learn) rows: the final EWMA return of MOIQ at each beta and
+    of the baseline per task and preference. The claim judged: MOIQ at the paper's beta ends within 10% of the
+    baseline or above it (Figure 2: "competitive with GAIL"; Figure 4: IQ-Learn unstable where MOIQ grows)."""
+    rows = []
+    for folder in sorted(results.glob("mujoco_*")):
+        protocol = folder.name.removeprefix("mujoco_")
+        for env, record in outputs_by_env(folder, name).items():
+            for preference, final in record["final_ewma_return"].get(env, {}).items():
+                moiq = final[f"MOIQ beta={paper.PAPER_BETA:g}"]
+                rows.append({"env": env, "preference": json.loads(preference), "protocol": protocol,
+                             "seeds": record["seeds"], **{method.lower(): value for method, value in final.items()},
+                             "claim_holds": paper.near_expert(moiq, final[baseline])})
+    return rows
+
+
+def transfer_rows(results: pathlib.Path) -> list[dict]:
+    """Figure 3 rows: per task and beta, the hypervolume of MOIQ's transferred front (mean and spread over seeds)
+    against the experts' front, with the same reference point."""
+    rows = []
+    for folder in sorted(results.glob("mujoco_*")):
+        protocol = folder.name.removeprefix("mujoco_")
+        for env, record in outputs_by_env(folder, "figure3").items():
+            if env not in record:
+                continue
+            expert = record[env]["expert_hypervolume"]
+            for beta, volumes in record[env]["hypervolume_per_seed"].items():
+                rows.append({"env": env, "beta": float(beta.removeprefix("beta=")), "protocol": protocol,
+                             "seeds": len(volumes), "hypervolume": round(float(np.mean(volumes)), 2),
+                             "hypervolume_std": round(float(np.std(volumes)), 2), "expert_hypervolume": expert,
+                             "ratio": round(float(np.mean(volumes)) / expert, 4)})
+    return rows
 
 
 def write_csv(path: pathlib.Path, rows: list[dict]) -> None:
@@ -110,7 +163,7 @@ def markdown(title: str, rows: list[dict], columns: list[str]) -> list[str]:
     lines = [f"## {title}", "", "| " + " | ".join(columns) + " |", "|" + "---|" * len(columns)]
     lines += ["| " + " | ".join(cell(r.get(c)) for c in columns) + " |" for r in rows]
     held = [r["claim_holds"] for r in rows if r.get("claim_holds") is not None]
-    return lines + ["", f"The paper's claim holds in {sum(held)} of {len(held)} rows checked.", ""]
+    return lines + (["", f"The paper's claim holds in {sum(held)} of {len(held)} rows checked."] if held else []) + [""]
 
 
 def main() -> None:
@@ -123,7 +176,11 @@ def main() -> None:
     cdst1, cdst2 = cdst_rows(results)
     mujoco1, mujoco2, table3 = mujoco_rows(results)
     table1, table2 = cdst1 + mujoco1, cdst2 + mujoco2
-    for name, rows in (("table1", table1), ("table2", table2), ("table3", table3)):
+    figure2 = learning_curve_rows(results, "figure2", "GAIL")
+    figure3 = transfer_rows(results)
+    figure4 = learning_curve_rows(results, "figure4", "IQ-Learn")
+    for name, rows in (("table1", table1), ("table2", table2), ("table3", table3), ("figure2", figure2),
+                       ("figure3", figure3), ("figure4", figure4)):
         write_csv(out / f"{name}.csv", rows)
     lines = ["# The paper's tables beside this project's measurements", "",
              "Written by `PYTHONPATH=. python experiments/paper_summary.py` from the committed outputs named in its",
@@ -138,6 +195,16 @@ def main() -> None:
     lines += markdown("Table 3: Pearson correlation of recovered and true scalarised reward (claim: >= the paper's)",
                       table3, ["env", "preference", "beta", "protocol", "correlation", "std", "per_objective", "paper",
                                "claim_holds"])
+    curve_columns = ["env", "preference", "protocol", "seeds", f"moiq beta={paper.PAPER_BETA:g}",
+                     f"moiq beta={paper.PROJECT_BETA:g}"]
+    lines += markdown("Figure 2: EWMA return at the end, MOIQ against GAIL (claim: MOIQ at beta 5 within 10% of GAIL "
+                      "or above)", figure2, [*curve_columns, "gail", "claim_holds"])
+    lines += markdown("Figure 3: hypervolume of the transferred front over 19 preferences against the experts'",
+                      figure3, ["env", "beta", "protocol", "seeds", "hypervolume", "hypervolume_std",
+                                "expert_hypervolume", "ratio"])
+    lines += markdown("Figure 4: EWMA return at the end from 1 demonstration per preference, MOIQ against IQ-Learn "
+                      "(claim: MOIQ at beta 5 within 10% of IQ-Learn or above)", figure4,
+                      [*curve_columns, "iq-learn", "claim_holds"])
     (out / "summary.md").write_text("\n".join(lines))
     print("\n".join(lines))
 

@@ -1,5 +1,5 @@
-"""The MuJoCo experiment scripts (Tables 1-3, Figure 3) end to end in their --quick mode on one task: one
-sweep, kept run by run, serves all four, and each writes its CSV, JSON and PNG with numbers consistent across
+"""The MuJoCo experiment scripts (Tables 1-3, Figures 2-4) end to end in their --quick mode on one task: one
+MOIQ sweep, kept run by run, serves them all, and each writes its CSV, JSON and PNG with numbers consistent across
 them; a run missing from the archive is trained alone, and a kept run of another config is an error."""
 
 import csv
@@ -27,7 +27,8 @@ def run(script, tmp_path, *extra, ok=True):
 @pytest.fixture(scope="module")
 def outputs(tmp_path_factory):
     tmp_path = tmp_path_factory.mktemp("paper")
-    return tmp_path, {script: run(script, tmp_path) for script in ("table1.py", "table2.py", "table3.py", "figure3.py")}
+    scripts = ("table1.py", "table2.py", "table3.py", "figure3.py", "figure2.py", "figure4.py")
+    return tmp_path, {script: run(script, tmp_path) for script in scripts}
 
 
 def test_one_sweep_serves_every_script(outputs):
@@ -36,6 +37,11 @@ def test_one_sweep_serves_every_script(outputs):
         assert f"trained moiq (quick protocol) beta{beta}-seed0, beta{beta}-seed1 (" in printed["table1.py"]
         assert (tmp_path / "cache" / "quick" / f"mo-halfcheetah-moiq-beta{beta}-seeds0-1" / "sweep.json").exists()
     assert all("trained" not in printed[s] for s in ("table2.py", "table3.py", "figure3.py"))  # read from the archive
+    assert "trained gail (quick protocol) seed0, seed1 (" in printed["figure2.py"]
+    assert printed["figure2.py"].count("trained") == 1  # MOIQ's curves are table1.py's runs
+    for sweep in ("moiq-1demo (quick protocol) beta5-seed0", "moiq-1demo (quick protocol) beta0.5-seed0",
+                  "iq_learn-1demo (quick protocol) seed0"):
+        assert f"trained {sweep}" in printed["figure4.py"]
     kept = tmp_path / "cache" / "quick" / "runs" / "mo-halfcheetah-moiq"
     assert sorted(p.name for p in kept.iterdir()) == [f"beta{b}-seed{s}" for b in ("0", "0.5", "5") for s in (0, 1)]
     for run in kept.iterdir():  # small files only, with the demonstrations' digest
@@ -45,8 +51,8 @@ def test_one_sweep_serves_every_script(outputs):
 
 def test_tables_and_figure_files(outputs):
     tmp_path, _ = outputs
-    for name in ("table1", "table2", "table3", "figure3"):
-        for ext in ("csv", "json", "png"):
+    for name in ("table1", "table2", "table3", "figure3", "figure2", "figure4"):
+        for ext in ("csv", "json", "png") if name not in ("figure2", "figure4") else ("json", "png"):
             assert (tmp_path / "mujoco_quick" / name / f"{name}.{ext}").stat().st_size > 0
         assert json.loads((tmp_path / "mujoco_quick" / name / f"{name}.json").read_text())["protocol"] == "quick"
     with open(tmp_path / "mujoco_quick" / "table1" / "table1.csv") as f:
@@ -62,6 +68,10 @@ def test_tables_and_figure_files(outputs):
     assert all(-1 <= r["correlation"] <= 1 and len(r["per_objective"]) == 2 for r in table3["rows"])
     figure3 = json.loads((tmp_path / "mujoco_quick" / "figure3" / "figure3.json").read_text())["mo-halfcheetah"]
     assert [len(v) for v in figure3["hypervolume_per_seed"].values()] == [2, 2] and figure3["expert_hypervolume"] > 0
+    for name, baseline in (("figure2", "GAIL"), ("figure4", "IQ-Learn")):  # final EWMA return per method
+        final = json.loads((tmp_path / "mujoco_quick" / name / f"{name}.json").read_text())["final_ewma_return"]
+        assert list(final["mo-halfcheetah"]) == ["[0.9, 0.1]", "[0.5, 0.5]", "[0.1, 0.9]"]
+        assert all(list(m) == ["MOIQ beta=5", "MOIQ beta=0.5", baseline] for m in final["mo-halfcheetah"].values())
 
 
 def test_paper_summary_reads_every_table(outputs):
@@ -69,6 +79,11 @@ def test_paper_summary_reads_every_table(outputs):
     paper's numbers and per row whether its claim holds, judged from the numbers in that row."""
     tmp_path, _ = outputs
     shutil.copytree(ROOT / "results" / "cdst_moiq", tmp_path / "cdst_moiq")
+    task = tmp_path / "mujoco_quick" / "mo-halfcheetah" / "table1"  # a per-task run supersedes the all-task one
+    task.mkdir(parents=True, exist_ok=True)
+    record = json.loads((tmp_path / "mujoco_quick" / "table1" / "table1.json").read_text())
+    record["rows"][0]["moiq_mean"] = 1234.5
+    (task / "table1.json").write_text(json.dumps(record))
     out = subprocess.run([sys.executable, str(ROOT / "experiments" / "paper_summary.py"), "--results", str(tmp_path),
                           "--out", str(tmp_path / "paper")], capture_output=True, text=True, timeout=300,
                          env={**os.environ, "PYTHONPATH": str(ROOT)}, check=False)
@@ -84,7 +99,23 @@ def test_paper_summary_reads_every_table(outputs):
         assert r["claim_holds"] == str(holds)
     with open(tmp_path / "paper" / "table3.csv") as f:
         assert all(r["claim_holds"] == str(float(r["correlation"]) >= float(r["paper"])) for r in csv.DictReader(f))
-    assert "## Table 2" in (tmp_path / "paper" / "summary.md").read_text()
+    assert float(table1[6]["moiq"]) == 1234.5
+    with open(tmp_path / "paper" / "figure3.csv") as f:
+        figure3 = list(csv.DictReader(f))
+    volumes = json.loads((tmp_path / "mujoco_quick" / "figure3" / "figure3.json").read_text())["mo-halfcheetah"]
+    assert [r["beta"] for r in figure3] == ["5.0", "0.5"]
+    for r in figure3:
+        per_seed = volumes["hypervolume_per_seed"][f"beta={float(r['beta']):g}"]
+        assert float(r["hypervolume"]) == pytest.approx(sum(per_seed) / 2, abs=0.01)
+    for name, baseline in (("figure2", "gail"), ("figure4", "iq-learn")):
+        with open(tmp_path / "paper" / f"{name}.csv") as f:
+            rows = list(csv.DictReader(f))
+        assert [r["preference"] for r in rows] == ["[0.9, 0.1]", "[0.5, 0.5]", "[0.1, 0.9]"]
+        for r in rows:
+            moiq, other = float(r["moiq beta=5"]), float(r[baseline])
+            assert r["claim_holds"] == str(moiq >= other - 0.1 * abs(other))
+    summary = (tmp_path / "paper" / "summary.md").read_text()
+    assert all(f"## {name}" in summary for name in ("Table 2", "Figure 2", "Figure 3", "Figure 4"))
 
 
 def test_a_missing_run_is_trained_alone_and_a_foreign_one_refused(outputs):
