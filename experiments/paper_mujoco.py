@@ -70,6 +70,8 @@ PROTOCOLS = {
               "eval_episodes": 1, "buffer_size": 64, "hidden_sizes": (16, 16), "batch_size": 16},
 }
 IQ_LEARN_DEFAULTS = {"learn_alpha": False, "init_alpha": 0.01, "use_target": False}
+EWMA_ALPHA = 0.1  # the paper's smoothing of learning curves (Table 2, Figures 2 and 4)
+LAST_WINDOW = 0.2  # Table 2 beside the EWMA: the mean return over the evaluations of the last 20% of training
 DIGEST_FILE = "demos.sha256"  # beside each kept run: the demonstrations file it learnt from
 
 
@@ -230,13 +232,18 @@ def near_expert(value: float, expert: float) -> bool:
     return bool(value >= expert - 0.1 * abs(expert))
 
 
-def learning_curves(result: Result, beta: float | None) -> tuple[np.ndarray, np.ndarray]:
-    """``(env steps per expert [evals], EWMA scalarised evaluation returns [seeds, evals, E])`` of the
-    ``beta`` runs of a sweep (one model, or one per expert: the steps are the same)."""
+def evaluation_returns(result: Result, beta: float | None) -> tuple[np.ndarray, np.ndarray]:
+    """``(env steps per expert [evals], scalarised evaluation returns [seeds, evals, E])`` of the ``beta`` runs
+    of a sweep (one model, or one per expert: the steps are the same)."""
     steps = np.asarray(result.history["env_steps"])[0]
     steps = steps if steps.ndim == 1 else steps[:, 0]
-    runs = runs_of(result, beta)
-    return steps, ewma(np.asarray(result.history["eval_scalar_return"])[runs], axis=1)
+    return steps, np.asarray(result.history["eval_scalar_return"])[runs_of(result, beta)]
+
+
+def learning_curves(result: Result, beta: float | None) -> tuple[np.ndarray, np.ndarray]:
+    """``evaluation_returns`` smoothed by the paper's EWMA along the evaluations."""
+    steps, returns = evaluation_returns(result, beta)
+    return steps, ewma(returns, axis=1)
 
 
 def runs_of(result: Result, beta: float | None) -> np.ndarray:
@@ -269,7 +276,13 @@ def expert_returns(env: str) -> np.ndarray:
     return moiq_jax.Demonstrations.load(DEMOS / f"{env}.npz").mean_returns()
 
 
-def ewma(values: np.ndarray, alpha: float = 0.1, axis: int = 0) -> np.ndarray:
+def last_window_mean(steps: np.ndarray, returns: np.ndarray, axis: int = 1) -> np.ndarray:
+    """The mean of ``returns`` over its evaluations (along ``axis``, made at ``steps``) after ``1 - LAST_WINDOW``
+    of the last step: what a run ends at, without the weight the EWMA of a short run keeps on its start."""
+    return np.compress(steps > (1 - LAST_WINDOW) * steps[-1], returns, axis=axis).mean(axis)
+
+
+def ewma(values: np.ndarray, alpha: float = EWMA_ALPHA, axis: int = 0) -> np.ndarray:
     """Exponentially weighted moving average along ``axis`` (the paper's smoothing, alpha = 0.1)."""
     values = np.moveaxis(np.asarray(values, np.float64), axis, 0)
     smoothed = np.empty_like(values)

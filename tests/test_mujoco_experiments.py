@@ -10,6 +10,7 @@ import shutil
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
@@ -64,6 +65,13 @@ def test_tables_and_figure_files(outputs):
         assert float(r["ratio_to_expert"]) == pytest.approx(float(r["moiq_mean"]) / float(r["expert"]), rel=0.02, abs=2e-3)
     table2 = json.loads((tmp_path / "mujoco_quick" / "table2" / "table2.json").read_text())
     assert table2["settings_where_beta5_beats_beta0"] == sum(r["beta5"] > r["beta0"] for r in table2["rows"])
+    kept = tmp_path / "cache" / "quick" / "runs" / "mo-halfcheetah-moiq"
+    for beta in ("0", "5", "0.5"):  # the last-20% column, recomputed from the kept runs' evaluations
+        history = [np.load(kept / f"beta{beta}-seed{seed}" / "history.npz") for seed in (0, 1)]
+        steps = history[0]["env_steps"]
+        last = np.stack([h["eval_scalar_return"][steps > 0.8 * steps[-1]] for h in history])  # [seeds, evals, E]
+        assert [r[f"beta{beta}_last"] for r in table2["rows"]] == pytest.approx(last.mean((0, 1)), abs=0.01)
+    assert table2["first_evaluation_weight"] == pytest.approx(0.9 ** (len(steps) - 1), abs=1e-6)
     table3 = json.loads((tmp_path / "mujoco_quick" / "table3" / "table3.json").read_text())
     assert all(-1 <= r["correlation"] <= 1 and len(r["per_objective"]) == 2 for r in table3["rows"])
     figure3 = json.loads((tmp_path / "mujoco_quick" / "figure3" / "figure3.json").read_text())["mo-halfcheetah"]
