@@ -292,29 +292,34 @@ def ewma(values: np.ndarray, alpha: float = EWMA_ALPHA, axis: int = 0) -> np.nda
     return np.moveaxis(smoothed, 0, axis)
 
 
-def curves_figure(envs, methods_of, path: pathlib.Path, note: str = "") -> dict:
+def curves_figure(envs, methods_of, path: pathlib.Path, note: str = "") -> tuple[dict, dict]:
     """One row of learning-curve panels per env, one panel per expert preference: the mean and spread over
-    seeds of each method's ``learning_curves`` (``methods_of(env)`` -> {method: (steps, curves)}) with the
-    expert's return; saved to ``path``. Returns the final EWMA return per env, preference and method."""
-    summary = {}
+    seeds of each method's EWMA-smoothed evaluation returns (``methods_of(env)`` -> {method: (steps, returns
+    [seeds, evals, E])}, as ``evaluation_returns``) with the expert's return; saved to ``path``. Returns the
+    final EWMA return and the ``last_window_mean`` per env, preference and method (means over seeds)."""
+    final, last = {}, {}
     fig, axes = plt.subplots(len(envs), 3, figsize=(13, 3.2 * len(envs)), layout="constrained", squeeze=False)
     for row, env in zip(axes, envs):
         methods = methods_of(env)
         preferences = moiq_config(env).preferences
         expert = (expert_returns(env) * np.asarray(preferences)).sum(-1)
         for e, ax in enumerate(row):
-            for method, (steps, curves) in methods.items():
-                mean, std = curves[:, :, e].mean(0), curves[:, :, e].std(0)
+            key = str(list(preferences[e]))
+            for method, (steps, returns) in methods.items():
+                curves = ewma(returns[:, :, e], axis=1)
+                mean, std = curves.mean(0), curves.std(0)
                 ax.plot(steps, mean, label=method)
                 ax.fill_between(steps, mean - std, mean + std, alpha=0.2)
-                summary.setdefault(env, {}).setdefault(str(list(preferences[e])), {})[method] = round(float(mean[-1]), 2)
+                final.setdefault(env, {}).setdefault(key, {})[method] = round(float(mean[-1]), 2)
+                last.setdefault(env, {}).setdefault(key, {})[method] = round(
+                    float(last_window_mean(steps, returns[:, :, e]).mean()), 2)
             ax.axhline(expert[e], color="k", linestyle="--", label="expert")
             ax.set_title(f"{env} {list(preferences[e])}{note}", fontsize=9)
             ax.set_xlabel("env steps per expert")
         row[0].set_ylabel("EWMA scalarised return")
     axes[0][0].legend(fontsize=7)
     fig.savefig(path, dpi=120)
-    return summary
+    return final, last
 
 
 def protocol_record(args) -> dict:

@@ -77,9 +77,15 @@ def test_tables_and_figure_files(outputs):
     figure3 = json.loads((tmp_path / "mujoco_quick" / "figure3" / "figure3.json").read_text())["mo-halfcheetah"]
     assert [len(v) for v in figure3["hypervolume_per_seed"].values()] == [2, 2] and figure3["expert_hypervolume"] > 0
     for name, baseline in (("figure2", "GAIL"), ("figure4", "IQ-Learn")):  # final EWMA return per method
-        final = json.loads((tmp_path / "mujoco_quick" / name / f"{name}.json").read_text())["final_ewma_return"]
-        assert list(final["mo-halfcheetah"]) == ["[0.9, 0.1]", "[0.5, 0.5]", "[0.1, 0.9]"]
-        assert all(list(m) == ["MOIQ beta=5", "MOIQ beta=0.5", baseline] for m in final["mo-halfcheetah"].values())
+        record = json.loads((tmp_path / "mujoco_quick" / name / f"{name}.json").read_text())
+        for final in (record["final_ewma_return"], record["final_last_window_return"]):
+            assert list(final["mo-halfcheetah"]) == ["[0.9, 0.1]", "[0.5, 0.5]", "[0.1, 0.9]"]
+            assert all(list(m) == ["MOIQ beta=5", "MOIQ beta=0.5", baseline] for m in final["mo-halfcheetah"].values())
+    table2_last = {tuple(json.loads(w)): r for w, r in
+                   json.loads((tmp_path / "mujoco_quick" / "figure2" / "figure2.json").read_text())
+                   ["final_last_window_return"]["mo-halfcheetah"].items()}
+    for r in table2["rows"]:  # Figure 2's MOIQ runs are Table 2's
+        assert table2_last[tuple(r["preference"])]["MOIQ beta=5"] == pytest.approx(r["beta5_last"], abs=0.01)
 
 
 def test_paper_summary_reads_every_table(outputs):
@@ -120,8 +126,9 @@ def test_paper_summary_reads_every_table(outputs):
             rows = list(csv.DictReader(f))
         assert [r["preference"] for r in rows] == ["[0.9, 0.1]", "[0.5, 0.5]", "[0.1, 0.9]"]
         for r in rows:
-            moiq, other = float(r["moiq beta=5"]), float(r[baseline])
-            assert r["claim_holds"] == str(moiq >= other - 0.1 * abs(other))
+            for end in ("", "_last"):
+                moiq, other = float(r[f"moiq beta=5{end}"]), float(r[f"{baseline}{end}"])
+                assert r[f"claim_holds{end}"] == str(moiq >= other - 0.1 * abs(other))
     summary = (tmp_path / "paper" / "summary.md").read_text()
     assert all(f"## {name}" in summary for name in ("Table 2", "Figure 2", "Figure 3", "Figure 4"))
 
