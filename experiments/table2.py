@@ -4,7 +4,8 @@ of the scalarised evaluation return at the end of training, averaged over seeds.
 The EWMA starts at the first evaluation (the policy before learning), whose weight at the end is 0.9^(n - 1)
 for n evaluations: about 3e-5 for the paper's 100, but 0.135 for the cpu protocol's 20, enough to pull the
 end value far towards the untrained policy's. So each beta's mean return over the evaluations of the last
-20% of training (``beta<b>_last``, ``paper_mujoco.last_window_mean``) is reported beside it, and the JSON records that weight.
+20% of training (``beta<b>_last``, ``paper_mujoco.last_window_mean``) is reported beside it, and the JSON
+records that weight.
 
     PYTHONPATH=. python experiments/table2.py [--envs ...] [--seeds 3] [--protocol cpu|paper] [--quick] [--out DIR]
 
@@ -73,10 +74,11 @@ def main() -> None:
         print(f"{r['env']:<15} {r['preference']!s:<18} {r['beta0']:9.1f} {r['beta5']:9.1f} {r['change_percent']:7.1f}%"
               f" {r[project]:9.1f} {r['change_percent_' + project]:7.1f}%   {r['paper_beta0']:>12} {r['paper_beta5']:>6}")
     print(f"beta = 5 beats beta = 0 in {better} of {len(rows)} settings (paper: 10 of 15); {project}: {better_project}")
-    print(f"the first evaluation's weight in the EWMA at the end: {first_weight:.3g}; mean over the last {paper.LAST_WINDOW:.0%} of "
-          f"training (beta 0 / 5 / {paper.PROJECT_BETA:g}):")
+    print(f"the first evaluation's weight in the EWMA at the end: {first_weight:.3g}; mean over the last "
+          f"{paper.LAST_WINDOW:.0%} of training (beta 0 / 5 / {paper.PROJECT_BETA:g}):")
     for r in rows:
-        print(f"{r['env']:<15} {r['preference']!s:<18} " + " / ".join(f"{r[f'beta{b:g}_last']:.1f}" for b in (0.0, 5.0, paper.PROJECT_BETA)))
+        lasts = " / ".join(f"{r[f'beta{b:g}_last']:.1f}" for b in (0.0, 5.0, paper.PROJECT_BETA))
+        print(f"{r['env']:<15} {r['preference']!s:<18} {lasts}")
     print(f"beta = 5 beats beta = 0 over the last {paper.LAST_WINDOW:.0%}: {last_better} of {len(rows)}")
 
 
