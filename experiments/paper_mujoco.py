@@ -240,12 +240,6 @@ def evaluation_returns(result: Result, beta: float | None) -> tuple[np.ndarray, 
     return steps, np.asarray(result.history["eval_scalar_return"])[runs_of(result, beta)]
 
 
-def learning_curves(result: Result, beta: float | None) -> tuple[np.ndarray, np.ndarray]:
-    """``evaluation_returns`` smoothed by the paper's EWMA along the evaluations."""
-    steps, returns = evaluation_returns(result, beta)
-    return steps, ewma(returns, axis=1)
-
-
 def runs_of(result: Result, beta: float | None) -> np.ndarray:
     """The runs of a sweep with consensus weight ``beta`` (None: every run, for algorithms without one)."""
     if beta is None:

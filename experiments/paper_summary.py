@@ -56,10 +56,10 @@ def cdst_rows(results: pathlib.Path) -> tuple[list[dict], list[dict]]:
                                      "cdst_moiq"))
     curves = np.load(folder / "curves.npz")
     table2 = []
+    last = paper.last_window_mean(curves["MOIQ beta=0/env_steps"][0], curves["MOIQ beta=0/eval_scalar_return"])
     for e, w in enumerate(CDST_PREFERENCES):
         final = {beta: float(paper.ewma(curves[f"MOIQ beta={beta}/eval_scalar_return"], axis=1)[:, -1, e].mean())
                  for beta in ("0", "0.5")}
-        last = paper.last_window_mean(curves["MOIQ beta=0/env_steps"][0], curves["MOIQ beta=0/eval_scalar_return"])
         table2.append({"env": "cdst", "preference": list(w), "protocol": "cdst_moiq", "beta0": round(final["0"], 3),
                        "beta5": None, "beta0.5": round(final["0.5"], 3), "beta0_last": round(float(last[:, e].mean()), 3),
                        "beta5_last": None, "paper_beta0": PAPER_CDST["beta0"][e],
@@ -122,14 +122,13 @@ def learning_curve_rows(results: pathlib.Path, name: str, baseline: str) -> list
     """Figure 2 (``baseline`` GAIL) or Figure 4 (IQ-Learn) rows: the final EWMA return of MOIQ at each beta and
     of the baseline per task and preference. The claim judged: MOIQ at the paper's beta ends within 10% of the
     baseline or above it (Figure 2: "competitive with GAIL"; Figure 4: IQ-Learn unstable where MOIQ grows)."""
-    rows = []
+    rows, moiq = [], f"MOIQ beta={paper.PAPER_BETA:g}"
     for folder in sorted(results.glob("mujoco_*")):
         protocol = folder.name.removeprefix("mujoco_")
         for env, record in outputs_by_env(folder, name).items():
             last_of_env = record.get("final_last_window_return", {}).get(env, {})
             for preference, final in record["final_ewma_return"].get(env, {}).items():
                 last = last_of_env.get(preference, {})
-                moiq = f"MOIQ beta={paper.PAPER_BETA:g}"
                 rows.append({"env": env, "preference": json.loads(preference), "protocol": protocol,
                              "seeds": record["seeds"], **{method.lower(): value for method, value in final.items()},
                              **{f"{method.lower()}_last": last.get(method) for method in final},

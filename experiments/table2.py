@@ -34,9 +34,10 @@ def main() -> None:
     rows, curves = [], {}
     for env in args.envs:
         result = paper.task_sweep(env, args)
-        smoothed = {beta: paper.learning_curves(result, beta) for beta in paper.BETAS}  # (steps, [seeds, evals, E])
-        steps = smoothed[5.0][0]
-        last = {beta: paper.last_window_mean(*paper.evaluation_returns(result, beta)) for beta in paper.BETAS}
+        raw = {beta: paper.evaluation_returns(result, beta) for beta in paper.BETAS}  # (steps, [seeds, evals, E])
+        steps = raw[5.0][0]
+        smoothed = {beta: (steps, paper.ewma(returns, axis=1)) for beta, (_, returns) in raw.items()}
+        last = {beta: paper.last_window_mean(steps, returns) for beta, (_, returns) in raw.items()}
         first_weight = (1 - paper.EWMA_ALPHA) ** (len(steps) - 1)
         project = paper.PROJECT_BETA
         for e, w in enumerate(result.config.preferences):
