@@ -74,7 +74,7 @@ class OffPolicyConfig:
 
 
 VALUE_TERMS = ("value", "v0")
-REGULARISERS = ("replay", "policy")
+REGULARISERS = ("replay", "policy", "both")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -88,7 +88,7 @@ class MOIQConfig:
                                       "policy rows; 'v0', (1 - gamma) E_expert[V(s)] (IQ-Learn's hopper and walker)")
     regulariser: str = _field("replay", "where the chi^2 regulariser reads the policy rows' rewards: 'replay', at their "
                                         "stored actions; 'policy', at actions of the current policy (IQ-Learn's "
-                                        "code for MuJoCo)")
+                                        "code for MuJoCo); 'both', every row at its own and at the policy's action")
     preference_warmup_steps: int = _field(50_000, "moiq with infer_preferences: env steps per expert under the "
                                                   "initial spread preferences before the first preference step")
     preference_interval: int = _field(10_000, "moiq with infer_preferences: env steps per expert between "

@@ -52,7 +52,7 @@ def _iq_learn_reference(critic, params, alpha, batch, w, key, use_target=True, v
     from the target critic, or with ``use_target=False`` from the online ``critic`` (with gradient); its
     second term ``value`` (expert and policy states) or ``v0`` (expert states as initial ones); its chi^2
     regulariser on the policy rows at their stored actions, or (``"policy"``) at the current policy's action
-    (the one V(s) samples)."""
+    (the one V(s) samples), or (``"both"``) on every row at both."""
     current_key, next_key = jax.random.split(key)
     n = batch["obs"].shape[0]
     ws = jnp.tile(w, (n, 1))
@@ -70,7 +70,8 @@ def _iq_learn_reference(critic, params, alpha, batch, w, key, use_target=True, v
     for q, q_at_policy in zip(nets.critic.apply(critic, batch["obs"], batch["action"], ws) @ w, q_policy):
         r = q - y
         second = (v - y).mean() if value_term == "value" else (1 - GAMMA) * v[expert].mean()
-        regularised = jnp.where(expert, r, q_at_policy - y) if regulariser == "policy" else r
+        regularised = {"replay": r, "policy": jnp.where(expert, r, q_at_policy - y),
+                       "both": jnp.concatenate([r, q_at_policy - y])}[regulariser]
         losses.append(-r[expert].mean() + second + (regularised**2).mean() / (4 * ALPHA_REG))
     return sum(losses) / len(losses)
 
@@ -78,7 +79,7 @@ def _iq_learn_reference(critic, params, alpha, batch, w, key, use_target=True, v
 @pytest.mark.parametrize("use_target,value_term,regulariser,nets", [
     (True, "value", "replay", NETS), (False, "value", "replay", NETS), (True, "v0", "replay", NETS),
     (False, "v0", "replay", NETS), (True, "value", "policy", NETS), (False, "value", "policy", NETS),
-    (True, "value", "policy", ONE_CRITIC)])
+    (True, "value", "policy", ONE_CRITIC), (True, "value", "both", NETS), (False, "v0", "both", ONE_CRITIC)])
 def test_one_expert_loss_and_gradient_are_iq_learns_for_any_beta(use_target, value_term, regulariser, nets):
     prefs = jnp.array([[0.7, 0.3]])
     learner, _ = _learner(prefs, nets=nets)

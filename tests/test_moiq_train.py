@@ -90,7 +90,7 @@ def test_validate_rejects_negative_beta():
         validate(TINY.replace(beta=-1.0))
     with pytest.raises(ValueError, match="value_term must be one of value, v0, got 'v1'"):
         validate(TINY.replace(value_term="v1"))
-    with pytest.raises(ValueError, match="regulariser must be one of replay, policy, got 'expert'"):
+    with pytest.raises(ValueError, match="regulariser must be one of replay, policy, both, got 'expert'"):
         validate(TINY.replace(regulariser="expert"))
     with pytest.raises(ValueError, match="num_critics must be 1 or 2, got 3"):
         validate(TINY.replace(num_critics=3))

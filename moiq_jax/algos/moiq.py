@@ -110,9 +110,12 @@ def critic_terms(critic_params, nets: Networks, params: Params, batches, prefere
     )  # (E, 2, B, d), (E, B, d), (E, B, d), (E, 2, S, d), (E, 2, B, d)
     scalar_rewards = jnp.einsum("ekbd,ed->ekb", own_rewards, preferences)
     regularised = scalar_rewards
-    if regulariser == "policy":
+    if regulariser != "replay":
         scalar_policy = jnp.einsum("ekbd,ed->ekb", policy_rewards, preferences)
-        regularised = jnp.where(batches["is_expert"][:, None], scalar_rewards, scalar_policy)
+        if regulariser == "policy":
+            regularised = jnp.where(batches["is_expert"][:, None], scalar_rewards, scalar_policy)
+        else:
+            regularised = jnp.concatenate([scalar_rewards, scalar_policy], axis=-1)
     scalar_values, scalar_next = (jnp.einsum("ebd,ed->eb", x, preferences) for x in (values, discounted_next))
     loss = functools.partial(iq_learn_loss, alpha_reg=alpha_reg, gamma=gamma, value_term=value_term)
     per_twin = jax.vmap(jax.vmap(loss, in_axes=(0, None, None, None, 0)))(
