@@ -53,23 +53,28 @@ PAPER_TABLE3 = {"mo-halfcheetah": (0.63, 0.52, 0.19), "mo-hopper": (0.91, 0.1, 0
                 "mo-ant": (0.92, 0.95, 0.86)}
 
 
-# The two protocols of DESIGN.md ("Backends and protocols"), and the CI smoke size. Both keep the paper's
-# Table 5 (critic lr 3e-4, tau 0.005, one update per env step per expert; actor lr 3e-5 but see "cpu") and IQ-Learn's own
+# The protocols of DESIGN.md ("Backends and protocols"), and the CI smoke size. All keep the paper's Table 5
+# (critic lr 3e-4, tau 0.005, one update per env step per expert; actor lr 3e-5 but see "cpu") and IQ-Learn's own
 # defaults, which the paper's code builds on and does not override: a fixed temperature 0.01 and V(s') from
 # the online critic. "paper": 500K env steps per expert, 256x256, batch 256, for an accelerator. "cpu": sized
 # so that one MOIQ run of a task fits about 30 minutes of the 2 CPU cores (128x128, batch 128, 100K steps),
-# with IQ-Learn's actor learning rate for 1M steps (3e-5) raised to 3e-4 for 100K; the pilots that chose it
-# are in results/mujoco_cpu/README.md.
+# with IQ-Learn's actor learning rate for 1M steps (3e-5) raised to 3e-4 for 100K. "cpu_recipe": the cpu
+# sizes for 300K steps with IQ-Learn's MuJoCo critic recipe (one critic, V(s') from the target critic, actor lr
+# 3e-5) and the chi^2 regulariser at both the rows' and the policy's actions, which keeps that recipe from
+# running away; about an hour of the 2 cores per run. The pilots that chose them are in
+# results/mujoco_cpu/README.md.
+IQ_LEARN_DEFAULTS = {"learn_alpha": False, "init_alpha": 0.01, "use_target": False}
+_CPU_SIZES = {"hidden_sizes": (128, 128), "batch_size": 128, "num_envs": 8, "updates_per_step": 8,
+              "learning_starts": 5_000, "eval_interval": 5_000, "eval_episodes": 5}
 PROTOCOLS = {
     "paper": {"total_steps": 499_200, "num_envs": 16, "updates_per_step": 16, "learning_starts": 4_992,
               "eval_interval": 4_992, "eval_episodes": 10, "buffer_size": 499_200},
-    "cpu": {"hidden_sizes": (128, 128), "batch_size": 128, "total_steps": 100_000, "num_envs": 8,
-            "updates_per_step": 8, "learning_starts": 5_000, "eval_interval": 5_000, "eval_episodes": 5,
-            "buffer_size": 100_000, "actor_lr": 3e-4},
+    "cpu": {**_CPU_SIZES, "total_steps": 100_000, "buffer_size": 100_000, "actor_lr": 3e-4},
+    "cpu_recipe": {**_CPU_SIZES, "total_steps": 300_000, "buffer_size": 300_000, "actor_lr": 3e-5, "num_critics": 1,
+                   "use_target": True, "regulariser": "both"},
     "quick": {"total_steps": 64, "num_envs": 16, "updates_per_step": 1, "learning_starts": 16, "eval_interval": 64,
               "eval_episodes": 1, "buffer_size": 64, "hidden_sizes": (16, 16), "batch_size": 16},
 }
-IQ_LEARN_DEFAULTS = {"learn_alpha": False, "init_alpha": 0.01, "use_target": False}
 EWMA_ALPHA = 0.1  # the paper's smoothing of learning curves (Table 2, Figures 2 and 4)
 LAST_WINDOW = 0.2  # Table 2 beside the EWMA: the mean return over the evaluations of the last 20% of training
 DIGEST_FILE = "demos.sha256"  # beside each kept run: the demonstrations file it learnt from
@@ -85,7 +90,12 @@ def moiq_config(env: str, protocol: str = "cpu", **changes) -> Config:
     ``changes``."""
     if protocol not in PROTOCOLS:
         raise ValueError(f"unknown protocol {protocol!r}; choose one of {', '.join(PROTOCOLS)}")
-    return tuned(env, demos=str(DEMOS / f"{env}.npz"), **IQ_LEARN_DEFAULTS, **PROTOCOLS[protocol]).replace(**changes)
+    return tuned(env, demos=str(DEMOS / f"{env}.npz"), **protocol_settings(protocol)).replace(**changes)
+
+
+def protocol_settings(protocol: str) -> dict:
+    """The Config fields ``protocol`` sets: IQ-Learn's defaults, then the protocol's own."""
+    return {**IQ_LEARN_DEFAULTS, **PROTOCOLS[protocol]}
 
 
 def gail_config(env: str, protocol: str = "cpu") -> Config:
@@ -93,14 +103,15 @@ def gail_config(env: str, protocol: str = "cpu") -> Config:
     the paper's protocol, learnt temperature), one model per preference, on the same demonstrations and env
     steps as MOIQ."""
     return moiq_config(env, protocol, algo="gail", actor_lr=3e-4, critic_lr=3e-4, disc_lr=3e-4, tau=0.05,
-                       use_target=True, learn_alpha=True, beta=0.0)
+                       use_target=True, learn_alpha=True, beta=0.0, num_critics=2)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--envs", nargs="+", default=list(ENVS), choices=ENVS)
     parser.add_argument("--seeds", type=int, default=3)
     parser.add_argument("--protocol", default="cpu", choices=[p for p in PROTOCOLS if p != "quick"],
-                        help="cpu: sized for the 2-core CPU machine; paper: the paper's (for an accelerator)")
+                        help="cpu: sized for the 2-core CPU machine; cpu_recipe: 3x its steps with IQ-Learn's "
+                             "MuJoCo critic recipe; paper: the paper's (for an accelerator)")
     parser.add_argument("--quick", action="store_true", help="a tiny run of every step (CI smoke test)")
     parser.add_argument("--cache", default="results/mujoco/sweeps",
                         help="where the sweeps are trained (checkpointed, resumable), per protocol")
@@ -319,7 +330,7 @@ def curves_figure(envs, methods_of, path: pathlib.Path, note: str = "") -> tuple
 def protocol_record(args) -> dict:
     """What every output file names: the protocol, its settings and the seeds."""
     protocol = protocol_of(args)
-    return {"protocol": protocol, "protocol_settings": {**IQ_LEARN_DEFAULTS, **PROTOCOLS[protocol]},
+    return {"protocol": protocol, "protocol_settings": protocol_settings(protocol),
             "seeds": 2 if args.quick else args.seeds}
 
 

@@ -191,7 +191,7 @@ def main() -> None:
     lines = ["# The paper's tables beside this project's measurements", "",
              "Written by `PYTHONPATH=. python experiments/paper_summary.py` from the committed outputs named in its",
              "docstring; `protocol` says which run each row comes from (cdst_moiq: `results/cdst_moiq/`, its tuned",
-             "config; cpu / paper: `experiments/paper_mujoco.py`'s protocols).", ""]
+             "config; cpu / cpu_recipe / paper: `experiments/paper_mujoco.py`'s protocols).", ""]
     lines += markdown("Table 1: best model's scalarised return (claim: within 10% of the expert)", table1,
                       ["env", "preference", "beta", "protocol", "moiq", "moiq_std", "expert", "ratio", "seeds",
                        "paper_moiq", "paper_expert", "claim_holds"])

@@ -162,3 +162,21 @@ def test_a_missing_run_is_trained_alone_and_a_foreign_one_refused(outputs):
     (record.parent / "demos.sha256").write_text("0" * 64)
     error = run("table2.py", tmp_path, "--archive", str(archive), ok=False)
     assert "beta5-seed0 holds a run trained on other demonstrations" in error
+
+
+@pytest.mark.parametrize("protocol", ["paper", "cpu", "cpu_recipe"])
+def test_each_protocol_configures_what_its_record_names(protocol):
+    """Every protocol's MOIQ config holds each setting its output files name, and GAIL under it keeps the paper's
+    Table 4 generator (twin critics, target critic) whatever critic recipe MOIQ uses."""
+    sys.path.insert(0, str(ROOT / "experiments"))
+    import paper_mujoco as paper
+
+    for env in paper.ENVS:
+        moiq = paper.moiq_config(env, protocol).validate().to_dict()
+        gail = paper.gail_config(env, protocol).validate().to_dict()
+        for name, value in paper.protocol_settings(protocol).items():
+            assert moiq[name] == value, (env, name)
+        assert (gail["num_critics"], gail["use_target"], gail["actor_lr"], gail["tau"]) == (2, True, 3e-4, 0.05)
+    recipe = paper.moiq_config("mo-hopper", "cpu_recipe").to_dict()
+    assert (recipe["num_critics"], recipe["use_target"], recipe["regulariser"], recipe["total_steps"]) == (
+        1, True, "both", 300_000)
