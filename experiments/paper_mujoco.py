@@ -61,7 +61,7 @@ PAPER_TABLE3 = {"mo-halfcheetah": (0.63, 0.52, 0.19), "mo-hopper": (0.91, 0.1, 0
 # with IQ-Learn's actor learning rate for 1M steps (3e-5) raised to 3e-4 for 100K. "cpu_recipe": the cpu
 # sizes for 300K steps with IQ-Learn's MuJoCo critic recipe (one critic, V(s') from the target critic, actor lr
 # 3e-5) and the chi^2 regulariser at both the rows' and the policy's actions, which keeps that recipe from
-# running away; about an hour of the 2 cores per run. The pilots that chose them are in
+# running away; about an hour of one core per run. The pilots that chose them are in
 # results/mujoco_cpu/README.md.
 IQ_LEARN_DEFAULTS = {"learn_alpha": False, "init_alpha": 0.01, "use_target": False}
 _CPU_SIZES = {"hidden_sizes": (128, 128), "batch_size": 128, "num_envs": 8, "updates_per_step": 8,

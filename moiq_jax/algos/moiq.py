@@ -83,10 +83,11 @@ def critic_terms(critic_params, nets: Networks, params: Params, batches, prefere
     Expert i's IQ-Learn term uses its own batch (expert and policy rows), averaged over the two twins as
     IQ-Learn does. Its chi^2 regulariser reads the recovered reward at the rows' own actions
     (``regulariser="replay"``), or on the policy rows at actions of the current policy (``"policy"``, as
-    IQ-Learn's code for MuJoCo: it holds down Q where the actor acts, not only where it acted). The penalty
-    compares all experts' recovered rewards on one common batch (``shared_batch``): comparing them on the
-    union of all batches would cost E times the IQ terms' work for a lower-variance estimate of the same
-    expectation. Each expert's rewards on its own rows and on the common rows come from one pass (one V(s')
+    IQ-Learn's code for MuJoCo: it holds down Q where the actor acts, not only where it acted), or on every row
+    at both (``"both"``: with a target critic it also holds Q at the policy's actions on expert states, where the
+    value term alone pushes it down without bound). The penalty compares all experts' recovered rewards on one
+    common batch (``shared_batch``): comparing them on the union of all batches would cost E times the IQ
+    terms' work for a lower-variance estimate of the same expectation. Each expert's rewards on its own rows and on the common rows come from one pass (one V(s')
     sample per row).
     """
     num_experts, per_expert = batches["is_expert"].shape
