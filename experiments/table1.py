@@ -1,6 +1,8 @@
 """The paper's Table 1 on the MuJoCo tasks: the best model's return of MOIQ (at the paper's beta = 5 and at
 this project's, ``paper_mujoco.MOIQ_BETAS``) per task and preference, over 100 evaluation episodes and every
-seed, next to the experts' and the paper's.
+seed, next to the experts' and the paper's. Beside it, from the runs' own evaluations during training (a few
+episodes each): each preference's best evaluation (``own_best``: the preferences of one model peak at different
+times) and the mean over the last 20% of training (``last_window``: where the run ends).
 
     PYTHONPATH=. python experiments/table1.py [--envs mo-hopper ...] [--seeds 3] [--betas 5 0.5] [--protocol cpu|paper]
         [--quick] [--no-train] [--out DIR]
@@ -41,12 +43,15 @@ def main() -> None:
         for beta in betas:
             returns = paper.best_model_returns(result, beta, episodes)  # [seeds, E, d]
             scalar = (returns * preferences).sum(-1)
+            steps, evaluations = paper.evaluation_returns(result, beta)  # [seeds, evals, E]
+            own_best, last_window = evaluations.max(1).mean(0), paper.last_window_mean(steps, evaluations).mean(0)
             for e, w in enumerate(preferences):
                 rows.append({"env": env, "preference": w.tolist(), "beta": beta,
                              "moiq_mean": round(float(scalar[:, e].mean()), 2),
                              "moiq_std": round(float(scalar[:, e].std()), 2), "expert": round(float(expert[e]), 2),
                              "ratio_to_expert": round(float(scalar[:, e].mean() / expert[e]), 3),
                              "near_expert": paper.near_expert(scalar[:, e].mean(), expert[e]),
+                             "own_best": round(float(own_best[e]), 2), "last_window": round(float(last_window[e]), 2),
                              "paper_moiq": paper.PAPER_TABLE1[env][e], "seeds": int(scalar.shape[0]),
                              "episodes": episodes})
     reached = {f"beta={beta:g}": sum(r["near_expert"] for r in rows if r["beta"] == beta) for beta in betas}
@@ -60,10 +65,12 @@ def main() -> None:
     ax.legend()
     fig.savefig(out / "table1.png", dpi=120)
 
-    print(f"{'env':<15} {'preference':<18} {'beta':>4} {'MOIQ':>16} {'expert':>9} {'ratio':>6} {'paper MOIQ':>10}")
+    print(f"{'env':<15} {'preference':<18} {'beta':>4} {'MOIQ':>16} {'expert':>9} {'ratio':>6} {'paper MOIQ':>10}"
+          f" {'own best':>9} {'last 20%':>9}")
     for r in rows:
         print(f"{r['env']:<15} {r['preference']!s:<18} {r['beta']:4g} {r['moiq_mean']:9.1f} ± {r['moiq_std']:5.1f} "
-              f"{r['expert']:9.1f} {r['ratio_to_expert']:6.2f} {r['paper_moiq']:10}")
+              f"{r['expert']:9.1f} {r['ratio_to_expert']:6.2f} {r['paper_moiq']:10} {r['own_best']:9.1f}"
+              f" {r['last_window']:9.1f}")
     for beta, count in reached.items():
         print(f"{beta}: settings within 10% of the expert's return: {count} of {len(rows) // len(reached)}")
 

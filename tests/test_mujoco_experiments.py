@@ -63,9 +63,15 @@ def test_tables_and_figure_files(outputs):
     assert {r["protocol"] for r in rows} == {"quick"}
     for r in rows:  # the ratio is the mean return over the committed experts' return
         assert float(r["ratio_to_expert"]) == pytest.approx(float(r["moiq_mean"]) / float(r["expert"]), rel=0.02, abs=2e-3)
+    kept = tmp_path / "cache" / "quick" / "runs" / "mo-halfcheetah-moiq"
+    for beta, beta_rows in (("5", rows[:3]), ("0.5", rows[3:])):  # own best and last 20%, from the kept evaluations
+        history = [np.load(kept / f"beta{beta}-seed{seed}" / "history.npz") for seed in (0, 1)]
+        evaluations = np.stack([h["eval_scalar_return"] for h in history])  # [seeds, evals, E]
+        late = history[0]["env_steps"] > 0.8 * history[0]["env_steps"][-1]
+        assert [float(r["own_best"]) for r in beta_rows] == pytest.approx(evaluations.max(1).mean(0), abs=0.01)
+        assert [float(r["last_window"]) for r in beta_rows] == pytest.approx(evaluations[:, late].mean((0, 1)), abs=0.01)
     table2 = json.loads((tmp_path / "mujoco_quick" / "table2" / "table2.json").read_text())
     assert table2["settings_where_beta5_beats_beta0"] == sum(r["beta5"] > r["beta0"] for r in table2["rows"])
-    kept = tmp_path / "cache" / "quick" / "runs" / "mo-halfcheetah-moiq"
     for beta in ("0", "5", "0.5"):  # the last-20% column, recomputed from the kept runs' evaluations
         history = [np.load(kept / f"beta{beta}-seed{seed}" / "history.npz") for seed in (0, 1)]
         steps = history[0]["env_steps"]
