@@ -89,6 +89,8 @@ class MOIQConfig:
     regulariser: str = _field("replay", "where the chi^2 regulariser reads the policy rows' rewards: 'replay', at their "
                                         "stored actions; 'policy', at actions of the current policy (IQ-Learn's "
                                         "code for MuJoCo); 'both', every row at its own and at the policy's action")
+    penalty_online: bool = _field(False, "moiq with use_target: the consensus penalty's rewards take V(s') from the "
+                                         "online critic, with gradient, not from the lagging target")
     preference_warmup_steps: int = _field(50_000, "moiq with infer_preferences: env steps per expert under the "
                                                   "initial spread preferences before the first preference step")
     preference_interval: int = _field(10_000, "moiq with infer_preferences: env steps per expert between "

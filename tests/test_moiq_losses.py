@@ -128,30 +128,57 @@ def test_critic_loss_penalty_ties_experts_and_beta_scales_it():
     np.testing.assert_allclose(loss0, m0["iq_loss"].sum(), rtol=1e-6)
 
 
+def _penalty_reference(critic, params, batches, prefs, key, online):
+    """The consensus penalty written out on the common batch (rows 0 and 6 of each expert's 8): expert j's rewards
+    ``Q(s, a, w_j) - gamma (1 - done) V(s', w_j)`` with V(s') from the target critic and a' drawn, as for its own
+    rows, from the noise of one pass over its own rows followed by the common ones; or (``online``) from the
+    online ``critic`` with a' drawn in a pass of the common rows alone."""
+    common = {k: batches[k][:, ::6].reshape(6, *batches[k].shape[2:]) for k in ("obs", "action", "next_obs", "done")}
+    rewards = []
+    for j, expert_key in enumerate(jax.random.split(key, 3)):
+        next_key = jax.random.split(expert_key)[1]
+        if online:
+            rows, noise_key, next_critic = common, jax.random.fold_in(next_key, 1), critic
+        else:
+            rows = {k: jnp.concatenate([batches[k][j], common[k]]) for k in common}
+            noise_key, next_critic = next_key, params.target_critic
+        ws = jnp.tile(prefs[j], (rows["obs"].shape[0], 1))
+        mean, log_std = NETS.actor.apply(params.actor, rows["next_obs"], ws)
+        pre_tanh = mean + jnp.exp(log_std) * jax.random.normal(noise_key, mean.shape)
+        q_next = NETS.critic.apply(next_critic, rows["next_obs"], jnp.tanh(pre_tanh), ws)  # (2, N, 2)
+        q_next = jnp.where((q_next[0] @ prefs[j] <= q_next[1] @ prefs[j])[:, None], q_next[0], q_next[1])
+        v_next = q_next - 0.2 * tanh_gaussian_log_prob(pre_tanh, mean, log_std)[:, None]
+        r = NETS.critic.apply(critic, rows["obs"], rows["action"], ws) - GAMMA * (1 - rows["done"])[:, None] * v_next
+        rewards.append(r[:, -6:])  # (2 twins, 6 common rows, 2)
+    return jnp.mean(sum(jnp.linalg.norm(rewards[j + 1] - rewards[j], axis=-1) for j in range(2)))
+
+
 def test_penalty_compares_every_experts_rewards_on_the_shared_rows():
-    """The penalty's common batch is rows 0 and 6 of each expert's 8 (every 2E-th); expert j's rewards
-    there are ``Q(s, a, w_j) - gamma (1 - done) V_target(s', w_j)`` with a' drawn, as for its own rows, from
-    the noise of one pass over its own rows followed by the common ones."""
     prefs = jnp.array([[0.9, 0.1], [0.5, 0.5], [0.1, 0.9]])
     learner, _ = _learner(prefs)
     params, batches, key = learner.params, _batches(3, 8), jax.random.PRNGKey(7)
-    common = {k: batches[k][:, ::6].reshape(6, *batches[k].shape[2:]) for k in ("obs", "action", "next_obs", "done")}
-    np.testing.assert_array_equal(common["obs"][1], batches["obs"][0, 6])
-    rewards = []
-    for j, expert_key in enumerate(jax.random.split(key, 3)):
-        rows = {k: jnp.concatenate([batches[k][j], common[k]]) for k in common}
-        ws = jnp.tile(prefs[j], (14, 1))
-        mean, log_std = NETS.actor.apply(params.actor, rows["next_obs"], ws)
-        pre_tanh = mean + jnp.exp(log_std) * jax.random.normal(jax.random.split(expert_key)[1], mean.shape)
-        q_next = NETS.critic.apply(params.target_critic, rows["next_obs"], jnp.tanh(pre_tanh), ws)  # (2, 14, 2)
-        q_next = jnp.where((q_next[0] @ prefs[j] <= q_next[1] @ prefs[j])[:, None], q_next[0], q_next[1])
-        v_next = q_next - 0.2 * tanh_gaussian_log_prob(pre_tanh, mean, log_std)[:, None]
-        r = NETS.critic.apply(params.critic, rows["obs"], rows["action"], ws) - GAMMA * (
-            1 - rows["done"])[:, None] * v_next
-        rewards.append(np.asarray(r[:, 8:]))  # (2 twins, 6 common rows, 2)
-    expected = np.mean(sum(np.linalg.norm(rewards[j + 1] - rewards[j], axis=-1) for j in range(2)))
+    np.testing.assert_array_equal(batches["obs"][:, ::6].reshape(6, 3)[1], batches["obs"][0, 6])
     _, metrics = critic_loss(params.critic, params, batches, prefs, 5.0, key)
-    np.testing.assert_allclose(metrics["penalty"], expected, rtol=1e-4)
+    np.testing.assert_allclose(metrics["penalty"], _penalty_reference(params.critic, params, batches, prefs, key,
+                                                                      online=False), rtol=1e-4)
+
+
+def test_online_penalty_reads_the_online_critic_with_gradient_and_leaves_the_iq_terms():
+    """``penalty_online``: the common rows' V(s') from the online critic, differentiated; the IQ terms keep the
+    target critic's V(s') (the same losses as without it)."""
+    prefs = jnp.array([[0.9, 0.1], [0.5, 0.5], [0.1, 0.9]])
+    learner, _ = _learner(prefs)
+    params, batches, key = learner.params, _batches(3, 8), jax.random.PRNGKey(7)
+    terms = lambda critic, online: moiq.critic_terms(critic, NETS, params, batches, prefs, key, GAMMA, ALPHA_REG,
+                                                     True, penalty_online=online)
+    (target_iq, target_penalty, _), (online_iq, online_penalty, _) = terms(params.critic, False), terms(params.critic, True)
+    np.testing.assert_allclose(online_iq, target_iq, rtol=1e-6)
+    reference = lambda critic: _penalty_reference(critic, params, batches, prefs, key, online=True)
+    np.testing.assert_allclose(online_penalty, reference(params.critic), rtol=1e-4)
+    assert abs(float(online_penalty) - float(target_penalty)) > 1e-3  # a different critic gives V(s')
+    got = jax.grad(lambda critic: terms(critic, True)[1])(params.critic)
+    for got_leaf, want in zip(jax.tree_util.tree_leaves(got), jax.tree_util.tree_leaves(jax.grad(reference)(params.critic))):
+        np.testing.assert_allclose(got_leaf, want, rtol=1e-4, atol=1e-6)
 
 
 def test_update_runs_jitted_for_all_experts_and_moves_targets_slowly():

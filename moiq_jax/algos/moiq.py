@@ -77,7 +77,7 @@ def shared_batch(batches):
 
 
 def critic_terms(critic_params, nets: Networks, params: Params, batches, preferences, key, gamma, alpha_reg,
-                 use_target, value_term="value", regulariser="replay"):
+                 use_target, value_term="value", regulariser="replay", penalty_online=False):
     """Eq. 9's terms: each expert's IQ-Learn loss ``[E]``, the consensus penalty, and metrics.
 
     Expert i's IQ-Learn term uses its own batch (expert and policy rows), averaged over the two twins as
@@ -87,8 +87,10 @@ def critic_terms(critic_params, nets: Networks, params: Params, batches, prefere
     at both (``"both"``: with a target critic it also holds Q at the policy's actions on expert states, where the
     value term alone pushes it down without bound). The penalty compares all experts' recovered rewards on one
     common batch (``shared_batch``): comparing them on the union of all batches would cost E times the IQ
-    terms' work for a lower-variance estimate of the same expectation. Each expert's rewards on its own rows and on the common rows come from one pass (one V(s')
-    sample per row).
+    terms' work for a lower-variance estimate of the same expectation. Each expert's rewards on its own rows and
+    on the common rows come from one pass (one V(s') sample per row), unless ``penalty_online`` with
+    ``use_target``: then the common rows' V(s') comes from the online critic, with gradient, so that the penalty
+    is a function of the current critic alone and does not chase the lagging target.
     """
     num_experts, per_expert = batches["is_expert"].shape
     penalised = num_experts > 1  # static: one expert has no neighbours
@@ -96,15 +98,23 @@ def critic_terms(critic_params, nets: Networks, params: Params, batches, prefere
     common = shared_batch({k: batches[k] for k in fields}) if penalised else None
     alphas = jax.lax.stop_gradient(jnp.exp(params.log_alpha))
 
+    separate_common = penalised and penalty_online and use_target  # static
+
     def one_expert(own, preference, alpha, key):
         value_key, next_key = jax.random.split(key)
-        rows = own if common is None else jax.tree_util.tree_map(lambda a, b: jnp.concatenate([a, b]), own, common)
+        rows = own if common is None or separate_common else jax.tree_util.tree_map(
+            lambda a, b: jnp.concatenate([a, b]), own, common)
         rewards, discounted_next = recovered_rewards(nets, critic_params, params, alpha, rows, preference,
                                                      next_key, gamma, use_target)
+        if separate_common:
+            common_rewards, _ = recovered_rewards(nets, critic_params, params, alpha, common, preference,
+                                                  jax.random.fold_in(next_key, 1), gamma, use_target=False)
+        else:
+            common_rewards = rewards[:, per_expert:]
         q_policy, log_prob = policy_q(nets, critic_params, params.actor, own["obs"], preference, value_key)
         value = soft_value_of(q_policy, log_prob, alpha, preference)
         own_next = discounted_next[:per_expert]
-        return rewards[:, :per_expert], value, own_next, rewards[:, per_expert:], q_policy - own_next
+        return rewards[:, :per_expert], value, own_next, common_rewards, q_policy - own_next
 
     own_rewards, values, discounted_next, common_rewards, policy_rewards = jax.vmap(one_expert)(
         {k: batches[k] for k in fields}, preferences, alphas, jax.random.split(key, num_experts)
@@ -131,10 +141,10 @@ def critic_terms(critic_params, nets: Networks, params: Params, batches, prefere
 
 
 def critic_loss(critic_params, nets: Networks, params: Params, batches, preferences, beta, key, gamma, alpha_reg,
-                use_target, value_term="value", regulariser="replay"):
+                use_target, value_term="value", regulariser="replay", penalty_online=False):
     """Eq. 9 summed over experts plus ``beta`` times the consensus penalty; returns ``(loss, metrics)``."""
     iq_losses, penalty, metrics = critic_terms(critic_params, nets, params, batches, preferences, key, gamma,
-                                               alpha_reg, use_target, value_term, regulariser)
+                                               alpha_reg, use_target, value_term, regulariser, penalty_online)
     return jnp.sum(iq_losses) + beta * penalty, {**metrics, "penalty": penalty}
 
 
@@ -163,7 +173,7 @@ def _objective(config):
     def loss(critic_params, nets, params, batches, preferences, hyper, key):
         return critic_loss(critic_params, nets, params, batches, preferences, hyper["beta"], key, config.gamma,
                            config.moiq.alpha_reg, config.moiq.use_target, config.moiq.value_term,
-                           config.moiq.regulariser)
+                           config.moiq.regulariser, config.moiq.penalty_online)
 
     return loss
 
