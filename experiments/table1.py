@@ -1,8 +1,9 @@
 """The paper's Table 1 on the MuJoCo tasks: the best model's return of MOIQ (at the paper's beta = 5 and at
 this project's, ``paper_mujoco.MOIQ_BETAS``) per task and preference, over 100 evaluation episodes and every
-seed, next to the experts' and the paper's. Beside it, from the runs' own evaluations during training (a few
-episodes each): each preference's best evaluation (``own_best``: the preferences of one model peak at different
-times) and the mean over the last 20% of training (``last_window``: where the run ends).
+seed (mean, spread and each seed's), next to the experts' and the paper's. Beside it, from the runs' own
+evaluations during training (a few episodes each): each preference's best evaluation (``own_best``: the
+preferences of one model peak at different times) and the mean over the last 20% of training (``last_window``:
+where the run ends).
 
     PYTHONPATH=. python experiments/table1.py [--envs mo-hopper ...] [--seeds 3] [--betas 5 0.5] [--protocol cpu|paper]
         [--quick] [--no-train] [--out DIR]
@@ -48,7 +49,9 @@ def main() -> None:
             for e, w in enumerate(preferences):
                 rows.append({"env": env, "preference": w.tolist(), "beta": beta,
                              "moiq_mean": round(float(scalar[:, e].mean()), 2),
-                             "moiq_std": round(float(scalar[:, e].std()), 2), "expert": round(float(expert[e]), 2),
+                             "moiq_std": round(float(scalar[:, e].std()), 2),
+                             "moiq_per_seed": [round(float(x), 2) for x in scalar[:, e]],
+                             "expert": round(float(expert[e]), 2),
                              "ratio_to_expert": round(float(scalar[:, e].mean() / expert[e]), 3),
                              "near_expert": paper.near_expert(scalar[:, e].mean(), expert[e]),
                              "own_best": round(float(own_best[e]), 2), "last_window": round(float(last_window[e]), 2),

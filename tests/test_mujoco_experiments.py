@@ -63,6 +63,9 @@ def test_tables_and_figure_files(outputs):
     assert {r["protocol"] for r in rows} == {"quick"}
     for r in rows:  # the ratio is the mean return over the committed experts' return
         assert float(r["ratio_to_expert"]) == pytest.approx(float(r["moiq_mean"]) / float(r["expert"]), rel=0.02, abs=2e-3)
+        per_seed = json.loads(r["moiq_per_seed"])  # one best model per seed, their mean and spread the columns'
+        assert len(per_seed) == 2
+        assert (np.mean(per_seed), np.std(per_seed)) == pytest.approx((float(r["moiq_mean"]), float(r["moiq_std"])), abs=0.02)
     kept = tmp_path / "cache" / "quick" / "runs" / "mo-halfcheetah-moiq"
     for beta, beta_rows in (("5", rows[:3]), ("0.5", rows[3:])):  # own best and last 20%, from the kept evaluations
         history = [np.load(kept / f"beta{beta}-seed{seed}" / "history.npz") for seed in (0, 1)]
