@@ -173,7 +173,7 @@ def test_a_missing_run_is_trained_alone_and_a_foreign_one_refused(outputs):
     assert "beta5-seed0 holds a run trained on other demonstrations" in error
 
 
-@pytest.mark.parametrize("protocol", ["paper", "cpu", "cpu_recipe"])
+@pytest.mark.parametrize("protocol", ["paper", "cpu", "cpu_recipe", "cpu_recipe_online_penalty"])
 def test_each_protocol_configures_what_its_record_names(protocol):
     """Every protocol's MOIQ config holds each setting its output files name, and GAIL under it keeps the paper's
     Table 4 generator (twin critics, target critic) whatever critic recipe MOIQ uses."""
@@ -189,3 +189,6 @@ def test_each_protocol_configures_what_its_record_names(protocol):
     recipe = paper.moiq_config("mo-hopper", "cpu_recipe").to_dict()
     assert (recipe["num_critics"], recipe["use_target"], recipe["regulariser"], recipe["total_steps"]) == (
         1, True, "both", 300_000)
+    online_penalty = paper.moiq_config("mo-hopper", "cpu_recipe_online_penalty").to_dict()
+    assert {k for k in recipe if online_penalty[k] != recipe[k]} == {"penalty_online"}  # the one difference
+    assert (online_penalty["penalty_online"], recipe["penalty_online"]) == (True, False)
