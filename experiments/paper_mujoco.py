@@ -68,14 +68,14 @@ PAPER_TABLE3 = {"mo-halfcheetah": (0.63, 0.52, 0.19), "mo-hopper": (0.91, 0.1, 0
 IQ_LEARN_DEFAULTS = {"learn_alpha": False, "init_alpha": 0.01, "use_target": False}
 _CPU_SIZES = {"hidden_sizes": (128, 128), "batch_size": 128, "num_envs": 8, "updates_per_step": 8,
               "learning_starts": 5_000, "eval_interval": 5_000, "eval_episodes": 5}
+_CPU_RECIPE = {**_CPU_SIZES, "total_steps": 300_000, "buffer_size": 300_000, "actor_lr": 3e-5, "num_critics": 1,
+               "use_target": True, "regulariser": "both"}
 PROTOCOLS = {
     "paper": {"total_steps": 499_200, "num_envs": 16, "updates_per_step": 16, "learning_starts": 4_992,
               "eval_interval": 4_992, "eval_episodes": 10, "buffer_size": 499_200},
     "cpu": {**_CPU_SIZES, "total_steps": 100_000, "buffer_size": 100_000, "actor_lr": 3e-4},
-    "cpu_recipe": {**_CPU_SIZES, "total_steps": 300_000, "buffer_size": 300_000, "actor_lr": 3e-5, "num_critics": 1,
-                   "use_target": True, "regulariser": "both"},
-    "cpu_recipe_online_penalty": {**_CPU_SIZES, "total_steps": 300_000, "buffer_size": 300_000, "actor_lr": 3e-5,
-                                  "num_critics": 1, "use_target": True, "regulariser": "both", "penalty_online": True},
+    "cpu_recipe": _CPU_RECIPE,
+    "cpu_recipe_online_penalty": {**_CPU_RECIPE, "penalty_online": True},
     "quick": {"total_steps": 64, "num_envs": 16, "updates_per_step": 1, "learning_starts": 16, "eval_interval": 64,
               "eval_episodes": 1, "buffer_size": 64, "hidden_sizes": (16, 16), "batch_size": 16},
 }

@@ -5,7 +5,7 @@ evaluations during training (a few episodes each): each preference's best evalua
 preferences of one model peak at different times) and the mean over the last 20% of training (``last_window``:
 where the run ends).
 
-    PYTHONPATH=. python experiments/table1.py [--envs mo-hopper ...] [--seeds 3] [--betas 5 0.5] [--protocol cpu|paper]
+    PYTHONPATH=. python experiments/table1.py [--envs mo-hopper ...] [--seeds 3] [--betas 5 0.5] [--protocol PROTOCOL]
         [--quick] [--no-train] [--out DIR]
 
 Reads each task's beta x seed sweep from the kept runs, training those not kept yet (``paper_mujoco.task_sweep``;
