@@ -173,6 +173,32 @@ def test_a_missing_run_is_trained_alone_and_a_foreign_one_refused(outputs):
     assert "beta5-seed0 holds a run trained on other demonstrations" in error
 
 
+def test_run_summary_reads_what_the_runs_recorded(outputs):
+    """run_summary.py: per run and preference, the model chosen on the mean (the trainer's best), each
+    preference's own best, the last 20% and the penalty's peak, from the kept runs' metrics."""
+    tmp_path, _ = outputs
+    archive = tmp_path / "cache" / "quick" / "runs"
+    out = subprocess.run([sys.executable, str(ROOT / "experiments" / "run_summary.py"), str(archive), "--csv",
+                          str(tmp_path / "runs.csv")], capture_output=True, text=True, timeout=300,
+                         env={**os.environ, "PYTHONPATH": str(ROOT)}, check=False)
+    assert out.returncode == 0, out.stderr[-3000:]
+    with open(tmp_path / "runs.csv") as f:
+        rows = list(csv.DictReader(f))
+    assert sorted({r["run"] for r in rows}) == [f"beta{b}-seed{s}" for b in ("0", "0.5", "5") for s in (0, 1)]
+    for name in ("beta5-seed1", "beta0.5-seed0"):
+        run = [r for r in rows if r["run"] == name]
+        history = np.load(archive / "mo-halfcheetah-moiq" / name / "history.npz")
+        record = json.loads((archive / "mo-halfcheetah-moiq" / name / "result.json").read_text())
+        returns, steps = history["eval_scalar_return"], history["env_steps"]
+        chosen = [float(r["chosen"]) for r in run]
+        assert np.mean(chosen) == pytest.approx(record["best_return"], abs=0.1)  # the trainer's best model
+        assert int(run[0]["chosen_step"]) == steps[np.argmax(returns.mean(1))]
+        assert [float(r["own_best"]) for r in run] == pytest.approx(returns.max(0), abs=0.06)
+        assert [float(r["last20"]) for r in run] == pytest.approx(returns[steps > 0.8 * steps[-1]].mean(0), abs=0.06)
+        assert float(run[0]["penalty_peak"]) == pytest.approx(history["penalty"].max(), abs=1e-3)
+    assert "mo-halfcheetah  beta5-seed1" in out.stdout
+
+
 @pytest.mark.parametrize("protocol", ["paper", "cpu", "cpu_recipe", "cpu_recipe_online_penalty"])
 def test_each_protocol_configures_what_its_record_names(protocol):
     """Every protocol's MOIQ config holds each setting its output files name, and GAIL under it keeps the paper's
