@@ -20,22 +20,23 @@ import paper_mujoco as paper
 from moiq_jax.archive import RESULT_FILE, load_result
 
 
-def run_rows(folder: pathlib.Path, env: str) -> list[dict]:
-    """One row per preference of the run kept in ``folder``."""
+def run_rows(folder: pathlib.Path, env: str, expert_vectors: np.ndarray) -> list[dict]:
+    """One row per preference of the run kept in ``folder``; ``expert_vectors`` [E, d]: the experts' returns."""
     run = load_result(folder)
     history = run.history
     steps = np.asarray(history["env_steps"])
     returns = np.asarray(history["eval_scalar_return"])  # [evals, E]
     chosen = int(np.argmax(returns.mean(axis=1)))
-    experts = paper.expert_returns(env) @ np.asarray(run.preferences).T  # [E, E]: expert i under preference j
+    experts = (expert_vectors * np.asarray(run.preferences)).sum(-1)  # each expert under its own preference
     last = paper.last_window_mean(steps, returns, axis=0)
     penalty, critic_loss = (np.asarray(history[k]) for k in ("penalty", "critic_loss"))
+
     def ratio(value: float, expert: float) -> float:  # nan where the expert's return is about zero (stands)
         return round(value / abs(expert), 3) if abs(expert) >= 1 else float("nan")
 
     rows = []
     for e, preference in enumerate(np.asarray(run.preferences)):
-        expert = float(experts[e, e])
+        expert = float(experts[e])
         rows.append({
             "env": env, "run": folder.name, "preference": [round(float(w), 2) for w in preference],
             "env_steps": int(steps[-1]), "seconds": round(float(run.seconds)), "expert": round(expert, 1),
@@ -58,7 +59,9 @@ def main() -> None:
     folders = sorted(args.archive.glob(f"*-moiq/*/{RESULT_FILE}"))
     if not folders:
         raise SystemExit(f"{args.archive} holds no kept MOIQ runs (<env>-moiq/<run>/{RESULT_FILE})")
-    rows = [row for path in folders for row in run_rows(path.parent, path.parent.parent.name.removesuffix("-moiq"))]
+    envs = {path: path.parent.parent.name.removesuffix("-moiq") for path in folders}
+    expert_vectors = {env: paper.expert_returns(env) for env in set(envs.values())}  # each demos file read once
+    rows = [row for path, env in envs.items() for row in run_rows(path.parent, env, expert_vectors[env])]
     print(f"{'env':<15} {'run':<15} {'preference':<16} {'expert':>8} {'chosen (step)':>17} {'own best':>14} "
           f"{'last 20%':>14} {'penalty first/peak/last':>24} {'critic loss peak':>17}")
     for r in rows:
