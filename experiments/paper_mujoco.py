@@ -105,9 +105,10 @@ def protocol_settings(protocol: str) -> dict:
 def gail_config(env: str, protocol: str = "cpu") -> Config:
     """GAIL with the paper's Table 4 settings (SAC generator: learning rate 3e-4, tau 0.05, batch 256 under
     the paper's protocol, learnt temperature), one model per preference, on the same demonstrations and env
-    steps as MOIQ."""
+    steps as MOIQ. GAIL has no consensus penalty, so protocols that differ in MOIQ's penalty alone give it one
+    config and can share its runs (``figure2.py --gail-protocol``)."""
     return moiq_config(env, protocol, algo="gail", actor_lr=3e-4, critic_lr=3e-4, disc_lr=3e-4, tau=0.05,
-                       use_target=True, learn_alpha=True, beta=0.0, num_critics=2)
+                       use_target=True, learn_alpha=True, beta=0.0, num_critics=2, penalty_online=False)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -326,6 +327,7 @@ def curves_figure(envs, methods_of, path: pathlib.Path, note: str = "") -> tuple
             ax.axhline(expert[e], color="k", linestyle="--", label="expert")
             ax.set_title(f"{env} {list(preferences[e])}{note}", fontsize=9)
             ax.set_xlabel("env steps per expert")
+            ax.xaxis.set_major_formatter(lambda steps, _: f"{steps / 1000:g}K")
         row[0].set_ylabel("EWMA scalarised return")
     axes[0][0].legend(fontsize=7)
     fig.savefig(path, dpi=120)

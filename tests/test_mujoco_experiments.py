@@ -218,3 +218,24 @@ def test_each_protocol_configures_what_its_record_names(protocol):
     online_penalty = paper.moiq_config("mo-hopper", "cpu_recipe_online_penalty").to_dict()
     assert {k for k in recipe if online_penalty[k] != recipe[k]} == {"penalty_online"}  # the one difference
     assert (online_penalty["penalty_online"], recipe["penalty_online"]) == (True, False)
+
+
+def test_figure2_shares_gail_runs_only_between_protocols_that_configure_gail_alike():
+    """GAIL has no consensus penalty: under cpu_recipe_online_penalty it is cpu_recipe's GAIL, whose kept runs
+    figure2.py may then read (``--gail-protocol``); a protocol with other GAIL settings is refused, naming them."""
+    import argparse
+    sys.path.insert(0, str(ROOT / "experiments"))
+    import figure2
+    import paper_mujoco as paper
+
+    args = argparse.Namespace(protocol="cpu_recipe_online_penalty", gail_protocol="cpu_recipe", quick=False,
+                              archive="elsewhere", seeds=1)
+    for env in paper.ENVS:
+        assert paper.gail_config(env, "cpu_recipe") == paper.gail_config(env, "cpu_recipe_online_penalty")
+        shared = figure2.gail_args(args, env)
+        assert (shared.protocol, shared.archive, args.protocol) == ("cpu_recipe", None, "cpu_recipe_online_penalty")
+        assert paper.archive_of(shared) == pathlib.Path("results/mujoco_cpu_recipe/runs")
+    with pytest.raises(SystemExit, match="total_steps"):
+        figure2.gail_args(argparse.Namespace(**{**vars(args), "protocol": "cpu"}), "mo-hopper")
+    own = argparse.Namespace(**{**vars(args), "gail_protocol": None})
+    assert figure2.gail_args(own, "mo-hopper") is own  # without the flag GAIL's runs are the protocol's own
