@@ -43,9 +43,8 @@ def main() -> None:
     out = paper.out_dir(args, "figure2")
 
     def methods_of(env):
-        shared = gail_args(args, env)
-        gail = paper.task_sweep(env, shared, "gail", paper.gail_config(env, paper.protocol_of(shared)), betas=None)
-        moiq = paper.task_sweep(env, args)
+        gail = paper.task_sweep(env, gail_args(args, env), "gail")
+        moiq = paper.task_sweep(env, args, betas=paper.MOIQ_BETAS)
         return {**{f"MOIQ beta={beta:g}": paper.evaluation_returns(moiq, beta) for beta in paper.MOIQ_BETAS},
                 "GAIL": paper.evaluation_returns(gail, None)}
 

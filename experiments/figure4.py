@@ -26,11 +26,9 @@ def main() -> None:
     out = paper.out_dir(args, "figure4")
 
     def methods_of(env):
-        moiq = paper.moiq_config(env, paper.protocol_of(args), num_demos=1)
-        iq_learn = moiq.replace(algo="iq_learn", beta=0.0)
-        sweep = paper.task_sweep(env, args, "moiq-1demo", moiq, paper.MOIQ_BETAS)
-        return {**{f"MOIQ beta={beta:g}": paper.evaluation_returns(sweep, beta) for beta in paper.MOIQ_BETAS},
-                "IQ-Learn": paper.evaluation_returns(paper.task_sweep(env, args, "iq_learn-1demo", iq_learn, None), None)}
+        moiq = paper.task_sweep(env, args, "moiq-1demo")
+        return {**{f"MOIQ beta={beta:g}": paper.evaluation_returns(moiq, beta) for beta in paper.MOIQ_BETAS},
+                "IQ-Learn": paper.evaluation_returns(paper.task_sweep(env, args, "iq_learn-1demo"), None)}
 
     final, last = paper.curves_figure(args.envs, methods_of, out / "figure4.png", note=", 1 demonstration")
     paper.write_outputs(out, "figure4", args, None, final_ewma_return=final, final_last_window_return=last)

@@ -111,6 +111,28 @@ def gail_config(env: str, protocol: str = "cpu") -> Config:
                        use_target=True, learn_alpha=True, beta=0.0, num_critics=2, penalty_online=False)
 
 
+# Every sweep the scripts read: what it is for. Its config and betas: ``sweep_of``.
+SWEEPS = {"moiq": "MOIQ, 10 demonstrations per preference (Tables 1-3, Figures 2 and 3)",
+          "gail": "GAIL, one model per preference (Figure 2)",
+          "moiq-1demo": "MOIQ from 1 demonstration per preference (Figure 4)",
+          "iq_learn-1demo": "IQ-Learn, one model per preference, from 1 demonstration per preference (Figure 4)"}
+
+
+def sweep_of(env: str, protocol: str, name: str) -> tuple[Config, tuple | None]:
+    """Sweep ``name`` (``SWEEPS``) of ``env`` under ``protocol``: its config and betas (None: the algorithm has
+    no beta)."""
+    if name == "moiq":
+        return moiq_config(env, protocol), BETAS
+    if name == "gail":
+        return gail_config(env, protocol), None
+    one_demo = moiq_config(env, protocol, num_demos=1)
+    if name == "moiq-1demo":
+        return one_demo, MOIQ_BETAS
+    if name == "iq_learn-1demo":
+        return one_demo.replace(algo="iq_learn", beta=0.0), None
+    raise ValueError(f"unknown sweep {name!r}; choose one of {', '.join(SWEEPS)}")
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--envs", nargs="+", default=list(ENVS), choices=ENVS)
     parser.add_argument("--seeds", type=int, default=3)
@@ -221,23 +243,25 @@ def train_runs(env: str, args, name: str, config: Config, betas, seeds) -> list[
     return trained
 
 
-def task_sweep(env: str, args, name: str = "moiq", config: Config | None = None, betas=BETAS) -> Result:
-    """The ``betas`` (None: the algorithm has no beta) x seed sweep ``name`` of ``env`` under the command
-    line's protocol (``config`` defaults to its ``moiq_config``), from the runs kept in the archive; those
-    not kept yet are trained first (``train_runs``), so a sweep longer than a session is trained in parts
-    (``experiments/train_runs.py``) and the tables read it without retraining."""
+def task_sweep(env: str, args, name: str = "moiq", betas: tuple | None = None) -> Result:
+    """Sweep ``name`` (``sweep_of``) of ``env`` under the command line's protocol, at ``betas`` (default: all
+    the sweep's) x seeds, from the runs kept in the archive; those not kept yet are trained first
+    (``train_runs``), so a sweep longer than a session is trained in parts (``experiments/train_runs.py``) and
+    the scripts read it without retraining."""
     seeds = list(range(2 if args.quick else args.seeds))
     set_up_host(seeds)
-    config = moiq_config(env, protocol_of(args)) if config is None else config
+    config, sweep_betas = sweep_of(env, protocol_of(args), name)
+    betas = sweep_betas if betas is None else tuple(betas)
     kept = archive_of(args) / f"{env}-{name}"
     wanted = run_configs(config, betas, seeds)
     runs = {run: load_run(kept / run, c) for run, c in wanted.items()}
     missing = [run for run, result in runs.items() if result is None]
     if missing:
         if args.no_train:
-            command = ("" if name != "moiq" else f"; `PYTHONPATH=. python experiments/train_runs.py --env {env} "
-                       f"--protocol {protocol_of(args)} --betas ... --seed-list ...` trains them")
-            raise SystemExit(f"{kept} does not hold the runs {', '.join(missing)} (--no-train){command}")
+            raise SystemExit(f"{kept} does not hold the runs {', '.join(missing)} (--no-train); "
+                             f"`PYTHONPATH=. python experiments/train_runs.py --env {env} --sweep {name} "
+                             f"{'--quick' if args.quick else '--protocol ' + args.protocol}"
+                             f"{' --betas ...' if betas else ''} --seed-list ...` trains them")
         train_runs(env, args, name, config, betas, seeds)
         runs.update({run: load_run(kept / run, wanted[run]) for run in missing})
     return stack_results(list(runs.values()))

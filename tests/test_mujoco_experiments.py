@@ -239,3 +239,34 @@ def test_figure2_shares_gail_runs_only_between_protocols_that_configure_gail_ali
         figure2.gail_args(argparse.Namespace(**{**vars(args), "protocol": "cpu"}), "mo-hopper")
     own = argparse.Namespace(**{**vars(args), "gail_protocol": None})
     assert figure2.gail_args(own, "mo-hopper") is own  # without the flag GAIL's runs are the protocol's own
+
+
+def test_train_runs_trains_any_scripts_sweep_in_parts(outputs):
+    """train_runs.py trains the runs of any script's sweep (here Figure 4's IQ-Learn) that the archive lacks, which
+    the script then reads without training; the script's --no-train error names that command; a beta for a sweep
+    without one is refused."""
+    tmp_path, _ = outputs
+    archive = tmp_path / "archive-parts"
+    shutil.copytree(tmp_path / "cache" / "quick" / "runs", archive)
+    shutil.rmtree(archive / "mo-halfcheetah-iq_learn-1demo" / "seed1")
+    figure4 = ("figure4.py", tmp_path, "--archive", str(archive), "--no-train", "--out", str(tmp_path / "f4"))
+    error = run(*figure4, ok=False)
+    assert ("mo-halfcheetah-iq_learn-1demo does not hold the runs seed1 (--no-train); `PYTHONPATH=. python "
+            "experiments/train_runs.py --env mo-halfcheetah --sweep iq_learn-1demo --quick --seed-list ...`") in error
+
+    def train_runs(*extra):
+        return subprocess.run([sys.executable, str(ROOT / "experiments" / "train_runs.py"), "--quick", "--env",
+                               "mo-halfcheetah", "--cache", str(tmp_path / "cache"), "--archive", str(archive), *extra],
+                              capture_output=True, text=True, timeout=900, env={**os.environ, "PYTHONPATH": str(ROOT)},
+                              check=False)
+
+    refused = train_runs("--sweep", "gail", "--betas", "5")
+    assert refused.returncode == 2 and "the gail sweep has no beta" in refused.stderr
+    trained = train_runs("--sweep", "iq_learn-1demo", "--seed-list", "0", "1")
+    assert trained.returncode == 0, trained.stderr[-3000:]
+    assert "trained iq_learn-1demo (quick protocol) seed1 (" in trained.stdout and "1 runs trained" in trained.stdout
+    record = json.loads((archive / "mo-halfcheetah-iq_learn-1demo" / "seed1" / "result.json").read_text())
+    assert (record["config"]["algo"], record["config"]["num_demos"], record["config"]["seed"]) == ("iq_learn", 1, 1)
+    run(*figure4)
+    final = json.loads((tmp_path / "f4" / "figure4.json").read_text())["final_ewma_return"]["mo-halfcheetah"]
+    assert len(final) == 3 and all("IQ-Learn" in by_method for by_method in final.values())
