@@ -39,7 +39,7 @@ def main() -> None:
             for e, w in enumerate(result.config.preferences):
                 rows.append({"env": env, "preference": list(w), "beta": beta,
                              "correlation": round(float(scalar[:, e].mean()), 3), "std": round(float(scalar[:, e].std()), 3),
-                             "per_objective": np.round(per_objective[:, e].mean(0), 3).tolist(),
+                             "per_objective": np.round(per_objective[:, e].mean(0, dtype=np.float64), 3).tolist(),
                              "paper": paper.PAPER_TABLE3[env][e]})
     at_least = {f"beta={beta:g}": sum(r["correlation"] >= r["paper"] for r in rows if r["beta"] == beta)
                 for beta in betas}
