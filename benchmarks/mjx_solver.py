@@ -8,8 +8,8 @@ One-step errors: ``--states`` states visited by random-action episodes of the na
 after 10-40 steps), each started on both backends with ``state_at(qpos, qvel)`` (MJX: float32) and stepped
 once with the same random action; the largest and the median absolute difference of the observation and of
 the reward vector. Expert returns: each committed expert (experiments/demos/<task>-experts.npz) for
-``--episodes`` episodes of the absorbing-state env (as its demonstrations), deterministic actions, the same
-reset keys on both backends; the mean vector return and the relative gap of the scalarised one.
+``--episodes`` episodes to termination or the time limit (``evaluate.preference_returns``), deterministic
+actions, the same reset keys on both backends; the mean vector return and the relative gap of the scalarised one.
 """
 
 from __future__ import annotations
@@ -24,8 +24,9 @@ import jax.numpy as jnp
 import numpy as np
 
 from moiq_jax import envs
-from moiq_jax.algos import moiq
+from moiq_jax.evaluate import preference_returns
 from moiq_jax.experts import sac as sac_experts
+from moiq_jax.networks import networks_of_sizes
 
 DEMOS = pathlib.Path(__file__).resolve().parents[1] / "experiments" / "demos"
 TASKS = ("mo-hopper", "mo-walker2d", "mo-halfcheetah", "mo-ant")
@@ -67,21 +68,16 @@ def one_step(env, qpos, qvel, actions):
 def expert_returns(name: str, episodes: int, **make_kwargs) -> tuple[np.ndarray, np.ndarray]:
     """(preferences, mean vector return per expert) of the committed experts over ``episodes`` episodes."""
     config, actor = sac_experts.load_experts(DEMOS / f"{name}-experts.npz")
-    env = envs.make(name, absorbing=True, **make_kwargs)
-    nets = moiq.networks_of_sizes(config.hidden_sizes, env.reward_dim, env.action_size, config.action_scale)
+    env = envs.make(name, **make_kwargs)
+    c = config.offpolicy
+    nets = networks_of_sizes(c.hidden_sizes, env.reward_dim, env.action_size, c.action_scale, c.num_critics)
     preferences = jnp.asarray(config.preferences, jnp.float32)
 
-    def episode(actor_params, preference, key):
-        def step(state, _):
-            action = nets.act(actor_params, state.obs[None, :-1], preference)[0]
-            nxt = env.step(state, action)
-            return nxt, nxt.reward
+    def one_expert(actor_params, preference, key):
+        return preference_returns(nets, actor_params, env, preference[None], key, episodes)[0]
 
-        return jax.lax.scan(step, env.reset(key), None, length=env.episode_length)[1].sum(0)
-
-    keys = jax.random.split(jax.random.key(7), episodes)
-    run = jax.jit(jax.vmap(jax.vmap(episode, in_axes=(None, None, 0)), in_axes=(0, 0, None)))
-    returns = np.asarray(run(actor, preferences, keys))  # [experts, episodes, reward_dim]
+    keys = jax.random.split(jax.random.key(7), preferences.shape[0])
+    returns = np.asarray(jax.jit(jax.vmap(one_expert))(actor, preferences, keys))  # [experts, episodes, d]
     return np.asarray(preferences), returns.mean(1)
 
 
