@@ -26,7 +26,7 @@ import numpy as np
 from moiq_jax import envs
 from moiq_jax.evaluate import preference_returns
 from moiq_jax.experts import sac as sac_experts
-from moiq_jax.networks import networks_of_sizes
+from moiq_jax.networks import networks_of_config
 
 DEMOS = pathlib.Path(__file__).resolve().parents[1] / "experiments" / "demos"
 TASKS = ("mo-hopper", "mo-walker2d", "mo-halfcheetah", "mo-ant")
@@ -70,7 +70,7 @@ def expert_returns(name: str, episodes: int, **make_kwargs) -> tuple[np.ndarray,
     config, actor = sac_experts.load_experts(DEMOS / f"{name}-experts.npz")
     env = envs.make(name, **make_kwargs)
     c = config.offpolicy
-    nets = networks_of_sizes(c.hidden_sizes, env.reward_dim, env.action_size, c.action_scale, c.num_critics)
+    nets = networks_of_config(c, env)
     preferences = jnp.asarray(config.preferences, jnp.float32)
 
     def one_expert(actor_params, preference, key):

@@ -1,6 +1,6 @@
 """Preference-conditioned networks: vector critics Q_k(s, a, w) in R^d (a twin pair, or one) and a tanh-Gaussian actor
 pi(a | s, w), the ``Networks`` pair every off-policy algorithm trains, its ``Params``, and what builds
-them (``networks_of_sizes``, or ``networks_for`` from trained parameters). The preference w is an
+them (``networks_of_sizes``, ``networks_of_config``, or ``networks_for`` from trained parameters). The preference w is an
 input, so one network serves every expert."""
 
 from __future__ import annotations
@@ -162,6 +162,13 @@ def networks_of_sizes(hidden_sizes, reward_dim: int, action_size: int, action_sc
     """Fresh critics and actor modules of the given layer widths for an env's reward and action sizes."""
     return Networks(VectorCritics(hidden_sizes, reward_dim, num_critics), TanhGaussianActor(hidden_sizes, action_size),
                     action_scale)
+
+
+def networks_of_config(offpolicy, env) -> Networks:
+    """Fresh networks of an off-policy config's sizes (``hidden_sizes``, ``action_scale``, ``num_critics``) for
+    ``env``'s reward and action sizes: the networks every trainer of that config builds."""
+    return networks_of_sizes(offpolicy.hidden_sizes, env.reward_dim, env.action_size, offpolicy.action_scale,
+                             offpolicy.num_critics)
 
 
 def networks_for(params: Params) -> Networks:

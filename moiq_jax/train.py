@@ -21,7 +21,7 @@ from moiq_jax.algos.offpolicy import Algorithm, expert_transitions, make_trainer
 from moiq_jax.config import Config
 from moiq_jax.experts.demonstrations import Demonstrations
 from moiq_jax.experts.loading import load_demonstrations, match_preferences, take_experts
-from moiq_jax.networks import networks_of_sizes
+from moiq_jax.networks import networks_of_config
 from moiq_jax.preferences import check_preferences
 from moiq_jax.result import Result
 from moiq_jax.runner import all_runs, one_run, run_chunks
@@ -100,8 +100,7 @@ def reward_correlations(params, config: Config, demos: Demonstrations | None = N
     env = config.make_env(absorbing=True)
     data = {k: jnp.asarray(v) for k, v in expert_transitions(load_demonstrations(config, env) if demos is None
                                                               else demos).items()}
-    nets = networks_of_sizes(config.offpolicy.hidden_sizes, env.reward_dim, env.action_size,
-                             config.offpolicy.action_scale, config.offpolicy.num_critics)
+    nets = networks_of_config(config.offpolicy, env)
     metrics = algorithm.reward_metrics(config, nets)
     preferences = jnp.asarray(config.preferences, jnp.float32)
     key = jax.random.PRNGKey(seed)

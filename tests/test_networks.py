@@ -7,6 +7,7 @@ from moiq_jax.networks import (
     TanhGaussianActor,
     VectorCritics,
     networks_for,
+    networks_of_config,
     networks_of_sizes,
     sample_tanh_gaussian,
     tanh_gaussian_log_prob,
@@ -31,6 +32,16 @@ def test_one_critic_and_networks_read_back_from_parameters():
         actor = nets.actor.init(jax.random.PRNGKey(1), jnp.ones((1, 4)), jnp.full((1, 3), 1 / 3))
         params = Params(critic=critic, target_critic=critic, actor=actor, log_alpha=jnp.zeros(1), action_scale=1.5)
         assert networks_for(params) == nets
+
+
+def test_networks_of_config_take_the_configs_sizes_and_the_envs():
+    from moiq_jax.config import OffPolicyConfig
+    from moiq_jax.envs import make
+
+    env = make("cdst")
+    config = OffPolicyConfig(hidden_sizes=(16, 8), action_scale=2.0, num_critics=1)
+    assert networks_of_config(config, env) == networks_of_sizes((16, 8), env.reward_dim, env.action_size, 2.0, 1)
+    assert networks_of_config(config, env) != networks_of_config(OffPolicyConfig(), env)
 
 
 def test_actor_conditions_on_preference():

@@ -36,7 +36,7 @@ from moiq_jax.algos.preference_inference import simplex_grid
 from moiq_jax.config import Config
 from moiq_jax.experts.demonstrations import Demonstrations
 from moiq_jax.experts.loading import load_unlabelled_demonstrations
-from moiq_jax.networks import networks_of_sizes
+from moiq_jax.networks import networks_of_config
 from moiq_jax.result import Result
 from moiq_jax.runtime import shard_runs
 
@@ -150,7 +150,7 @@ def train_seeds(config: Config, seeds, demos: Demonstrations | None = None, log=
     candidates = jnp.asarray(simplex_grid(env.reward_dim, resolution))
     canonical_demos = demo_behaviour[order]
     c, m = config.offpolicy, config.moiq
-    nets = networks_of_sizes(c.hidden_sizes, env.reward_dim, env.action_size, c.action_scale, c.num_critics)  # the trainer's
+    nets = networks_of_config(c, env)  # the trainer's
 
     @jax.jit
     @jax.vmap

@@ -33,7 +33,7 @@ from moiq_jax.envs.wrappers import AutoReset, DoneOnAbsorption, VmapWrapper
 from moiq_jax.evaluate import preference_returns
 from moiq_jax.experts.demonstrations import Demonstrations
 from moiq_jax.experts.loading import load_demonstrations, preference_order
-from moiq_jax.networks import networks_of_sizes
+from moiq_jax.networks import networks_of_config
 from moiq_jax.preferences import check_preferences
 
 TRANSITION_FIELDS = ("obs", "action", "next_obs", "done")  # what the inverse-RL losses see of a transition
@@ -164,7 +164,7 @@ def make_trainer(config: Config, algorithm: Algorithm, demos: Demonstrations | N
     num_experts = labels.shape[0]
     ends_at_termination = algorithm.learns_from_demos and not c.absorbing_rollouts
     rollout_env = VmapWrapper(AutoReset(DoneOnAbsorption(env) if ends_at_termination else env), c.num_envs)
-    nets = networks_of_sizes(c.hidden_sizes, env.reward_dim, env.action_size, c.action_scale, c.num_critics)
+    nets = networks_of_config(c, env)
     optimisers = actor_critic.Optimisers(optax.adam(c.critic_lr), optax.adam(c.actor_lr), optax.adam(c.alpha_lr))
     settings = actor_critic.Settings(-float(env.action_size), c.tau, c.learn_alpha)
     critic_loss = algorithm.critic_loss(config)

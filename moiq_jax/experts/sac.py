@@ -18,7 +18,7 @@ from flax import serialization, traverse_util
 
 from moiq_jax.config import Config, tuned
 from moiq_jax.experts.demonstrations import Demonstrations
-from moiq_jax.networks import networks_of_sizes
+from moiq_jax.networks import networks_of_config
 
 # SAC as in the paper's experts (sec. 5.1, 0.5M steps; its Table 5 sizes) with Stable-Baselines3's SAC
 # settings where the paper gives none: equal actor and critic learning rates, a learnt temperature from
@@ -70,7 +70,7 @@ def record_demonstrations(config: Config, actor_params, num_demos: int = 10, see
     model per ``config.preferences``) in the absorbing-state env, all episodes at once."""
     env = config.make_env(absorbing=True)
     c = config.offpolicy
-    nets = networks_of_sizes(c.hidden_sizes, env.reward_dim, env.action_size, c.action_scale, c.num_critics)
+    nets = networks_of_config(c, env)
     preferences = jnp.asarray(config.preferences, jnp.float32)
     horizon = env.episode_length
 
