@@ -9,7 +9,9 @@ after 10-40 steps), each started on both backends with ``state_at(qpos, qvel)`` 
 once with the same random action; the largest and the median absolute difference of the observation and of
 the reward vector. Expert returns: each committed expert (experiments/demos/<task>-experts.npz) for
 ``--episodes`` episodes to termination or the time limit (``evaluate.preference_returns``), deterministic
-actions, the same reset keys on both backends; the mean vector return and the relative gap of the scalarised one.
+actions, the same reset keys on both backends; the mean vector return, the mean scalarised one with its standard
+error (episodes' standard deviation / sqrt(episodes)), and the relative gap of the scalarised means with the
+standard error of that difference (the two means taken as independent: the episodes diverge chaotically).
 """
 
 from __future__ import annotations
@@ -66,7 +68,7 @@ def one_step(env, qpos, qvel, actions):
 
 
 def expert_returns(name: str, episodes: int, **make_kwargs) -> tuple[np.ndarray, np.ndarray]:
-    """(preferences, mean vector return per expert) of the committed experts over ``episodes`` episodes."""
+    """(preferences [experts, d], vector returns [experts, episodes, d]) of the committed experts."""
     config, actor = sac_experts.load_experts(DEMOS / f"{name}-experts.npz")
     env = envs.make(name, **make_kwargs)
     c = config.offpolicy
@@ -77,8 +79,13 @@ def expert_returns(name: str, episodes: int, **make_kwargs) -> tuple[np.ndarray,
         return preference_returns(nets, actor_params, env, preference[None], key, episodes)[0]
 
     keys = jax.random.split(jax.random.key(7), preferences.shape[0])
-    returns = np.asarray(jax.jit(jax.vmap(one_expert))(actor, preferences, keys))  # [experts, episodes, d]
-    return np.asarray(preferences), returns.mean(1)
+    return np.asarray(preferences), np.asarray(jax.jit(jax.vmap(one_expert))(actor, preferences, keys))
+
+
+def scalarised_mean_and_error(preferences: np.ndarray, returns: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per expert, the mean scalarised return over ``returns``' episodes and its standard error."""
+    scalarised = np.einsum("ed,etd->et", preferences, returns)
+    return scalarised.mean(1), scalarised.std(1, ddof=1) / np.sqrt(scalarised.shape[1])
 
 
 def main() -> None:
@@ -105,17 +112,21 @@ def main() -> None:
         start = time.perf_counter()
         preferences, native_returns = expert_returns(name, args.episodes, backend="mujoco")
         seconds = time.perf_counter() - start
+        native_mean, native_error = scalarised_mean_and_error(preferences, native_returns)
         print(f"{name:<15} experts, native:     " + "  ".join(
-            f"{np.round(r, 1).tolist()} (w.r {w @ r:8.1f})" for w, r in zip(preferences, native_returns))
-            + f"  [{seconds:.0f} s]", flush=True)
+            f"{np.round(r.mean(0), 1).tolist()} (w.r {m:8.1f} ± {e:.1f})"
+            for r, m, e in zip(native_returns, native_mean, native_error)) + f"  [{seconds:.0f} s]", flush=True)
         for solver in args.expert_solvers:
             start = time.perf_counter()
             _, returns = expert_returns(name, args.episodes, backend="mjx", mjx_solver=solver)
             seconds = time.perf_counter() - start
-            gaps = [(w @ r - w @ n) / abs(w @ n) for w, r, n in zip(preferences, returns, native_returns)]
+            mean, error = scalarised_mean_and_error(preferences, returns)
+            gaps = (mean - native_mean) / np.abs(native_mean)
+            gap_errors = np.hypot(error, native_error) / np.abs(native_mean)
             print(f"{name:<15} experts, mjx {solver:<6}: " + "  ".join(
-                f"{np.round(r, 1).tolist()} (w.r {w @ r:8.1f}, {100 * g:+.1f}%)"
-                for w, r, g in zip(preferences, returns, gaps)) + f"  [{seconds:.0f} s]", flush=True)
+                f"{np.round(r.mean(0), 1).tolist()} (w.r {m:8.1f} ± {e:.1f}, {100 * g:+.1f} ± {100 * ge:.1f}%)"
+                for r, m, e, g, ge in zip(returns, mean, error, gaps, gap_errors)) + f"  [{seconds:.0f} s]",
+                flush=True)
 
 
 if __name__ == "__main__":

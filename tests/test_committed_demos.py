@@ -48,4 +48,7 @@ def test_committed_experts_repeat_their_demonstrated_returns_in_the_mjx_benchmar
     demos = Demonstrations.load(DEMOS / "mo-halfcheetah.npz")
     np.testing.assert_allclose(preferences, demos.preferences)
     expected = (demos.preferences * demos.mean_returns()).sum(-1)
-    np.testing.assert_allclose((preferences * returns).sum(-1), expected, rtol=0.01, atol=0.1)
+    mean, error = mjx_solver.scalarised_mean_and_error(preferences, returns)
+    np.testing.assert_allclose(mean, expected, rtol=0.01, atol=0.1)
+    scalarised = (preferences[:, None] * returns).sum(-1)  # [experts, 2 episodes]
+    np.testing.assert_allclose(error, np.abs(scalarised[:, 0] - scalarised[:, 1]) / 2, rtol=1e-4, atol=1e-4)
