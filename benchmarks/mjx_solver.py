@@ -114,7 +114,7 @@ def main() -> None:
         seconds = time.perf_counter() - start
         native_mean, native_error = scalarised_mean_and_error(preferences, native_returns)
         print(f"{name:<15} experts, native:     " + "  ".join(
-            f"{np.round(r.mean(0), 1).tolist()} (w.r {m:8.1f} ± {e:.1f})"
+            f"{np.round(r.mean(0, dtype=np.float64), 1).tolist()} (w.r {m:8.1f} ± {e:.1f})"
             for r, m, e in zip(native_returns, native_mean, native_error)) + f"  [{seconds:.0f} s]", flush=True)
         for solver in args.expert_solvers:
             start = time.perf_counter()
@@ -124,7 +124,7 @@ def main() -> None:
             gaps = (mean - native_mean) / np.abs(native_mean)
             gap_errors = np.hypot(error, native_error) / np.abs(native_mean)
             print(f"{name:<15} experts, mjx {solver:<6}: " + "  ".join(
-                f"{np.round(r.mean(0), 1).tolist()} (w.r {m:8.1f} ± {e:.1f}, {100 * g:+.1f} ± {100 * ge:.1f}%)"
+                f"{np.round(r.mean(0, dtype=np.float64), 1).tolist()} (w.r {m:8.1f} ± {e:.1f}, {100 * g:+.1f} ± {100 * ge:.1f}%)"
                 for r, m, e, g, ge in zip(returns, mean, error, gaps, gap_errors)) + f"  [{seconds:.0f} s]",
                 flush=True)
 
