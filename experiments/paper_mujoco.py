@@ -15,7 +15,13 @@ import csv
 import dataclasses
 import hashlib
 import json
+import os
 import pathlib
+import platform
+import shlex
+import subprocess
+import sys
+import time
 
 import jax
 import matplotlib
@@ -32,7 +38,9 @@ from moiq_jax.runtime import split_cpu_into_devices, use_compilation_cache
 from moiq_jax.train import SWEEP_FILE, run_dir_names, run_grid
 
 ENVS = ("mo-halfcheetah", "mo-hopper", "mo-walker2d", "mo-ant")
-DEMOS = pathlib.Path(__file__).resolve().parent / "demos"
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+DEMOS = ROOT / "experiments" / "demos"
+_STARTED = time.time()  # the script's start, for the outputs' wall time (every MuJoCo script imports this first)
 PAPER_BETA = 5.0
 # The consensus weight this project's penalty needs (its scale is the batch mean of per-sample reward distances,
 # the paper does not state its own): chosen on cdst (results/cdst_moiq/README.md) and in the MuJoCo pilots
@@ -365,10 +373,31 @@ def protocol_record(args) -> dict:
             "seeds": 2 if args.quick else args.seeds}
 
 
+def provenance() -> dict:
+    """How an output was made: the command line, the code's commit (and whether moiq_jax/ or experiments/ had
+    uncommitted changes; None outside a git checkout), the machine, and the wall seconds since the script started."""
+    def git(*command: str) -> str | None:
+        try:
+            done = subprocess.run(["git", "-C", str(ROOT), *command], capture_output=True, text=True, timeout=30,
+                                  check=False)
+        except (OSError, subprocess.SubprocessError):
+            return None
+        return done.stdout.strip() if done.returncode == 0 else None
+
+    commit = git("rev-parse", "HEAD")
+    changes = git("status", "--porcelain", "--", "moiq_jax", "experiments") if commit else None
+    return {"command": shlex.join(["python", *sys.argv]), "commit": commit,
+            "uncommitted_changes": None if changes is None else bool(changes),
+            "machine": f"{platform.machine()}, {os.cpu_count()} cores, jax {jax.__version__} on "
+                       f"{jax.devices()[0].platform}",
+            "wall_seconds": round(time.time() - _STARTED, 1),
+            "written": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
+
+
 def write_outputs(out: pathlib.Path, name: str, args, rows: list[dict] | None, **summary) -> None:
     """``out/<name>.csv`` (``rows``, dicts with the same keys, each with the protocol's name; None: no CSV)
-    and ``out/<name>.json`` (the protocol record, ``summary`` and the rows)."""
-    record = protocol_record(args)
+    and ``out/<name>.json`` (the protocol record, ``summary``, the rows and the ``provenance``)."""
+    record = {**protocol_record(args), "provenance": provenance()}
     if rows:
         with open(out / f"{name}.csv", "w", newline="") as f:
             writer = csv.DictWriter(f, fieldnames=[*rows[0], "protocol"])

@@ -55,7 +55,14 @@ def test_tables_and_figure_files(outputs):
     for name in ("table1", "table2", "table3", "figure3", "figure2", "figure4"):
         for ext in ("csv", "json", "png") if name not in ("figure2", "figure4") else ("json", "png"):
             assert (tmp_path / "mujoco_quick" / name / f"{name}.{ext}").stat().st_size > 0
-        assert json.loads((tmp_path / "mujoco_quick" / name / f"{name}.json").read_text())["protocol"] == "quick"
+        record = json.loads((tmp_path / "mujoco_quick" / name / f"{name}.json").read_text())
+        assert record["protocol"] == "quick"
+        made = record["provenance"]  # the command that wrote it, at which commit
+        assert made["command"].startswith(f"python {ROOT / 'experiments' / name}.py --quick --envs mo-halfcheetah")
+        commit = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "HEAD"], capture_output=True, text=True,
+                                check=False)
+        assert made["commit"] == (commit.stdout.strip() if commit.returncode == 0 else None)
+        assert made["wall_seconds"] > 0 and made["machine"].endswith("on cpu")
     with open(tmp_path / "mujoco_quick" / "table1" / "table1.csv") as f:
         rows = list(csv.DictReader(f))
     assert [(r["beta"], r["preference"]) for r in rows] == [(beta, w) for beta in ("5.0", "0.5")
