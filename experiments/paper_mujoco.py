@@ -40,7 +40,6 @@ from moiq_jax.train import SWEEP_FILE, run_dir_names, run_grid
 ENVS = ("mo-halfcheetah", "mo-hopper", "mo-walker2d", "mo-ant")
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 DEMOS = ROOT / "experiments" / "demos"
-_STARTED = time.time()  # the script's start, for the outputs' wall time (every MuJoCo script imports this first)
 PAPER_BETA = 5.0
 # The consensus weight this project's penalty needs (its scale is the batch mean of per-sample reward distances,
 # the paper does not state its own): chosen on cdst (results/cdst_moiq/README.md) and in the MuJoCo pilots
@@ -373,9 +372,19 @@ def protocol_record(args) -> dict:
             "seeds": 2 if args.quick else args.seeds}
 
 
+def process_wall_seconds() -> float | None:
+    """Wall seconds since this process started (from Linux's /proc; None where there is none)."""
+    try:
+        start_ticks = int(pathlib.Path("/proc/self/stat").read_text().rsplit(")", 1)[1].split()[19])
+        uptime = float(pathlib.Path("/proc/uptime").read_text().split()[0])
+    except (OSError, ValueError, IndexError):
+        return None
+    return round(uptime - start_ticks / os.sysconf("SC_CLK_TCK"), 1)
+
+
 def provenance() -> dict:
     """How an output was made: the command line, the code's commit (and whether moiq_jax/ or experiments/ had
-    uncommitted changes; None outside a git checkout), the machine, and the wall seconds since the script started."""
+    uncommitted changes; None outside a git checkout), the machine, and the script's wall seconds so far."""
     def git(*command: str) -> str | None:
         try:
             done = subprocess.run(["git", "-C", str(ROOT), *command], capture_output=True, text=True, timeout=30,
@@ -390,7 +399,7 @@ def provenance() -> dict:
             "uncommitted_changes": None if changes is None else bool(changes),
             "machine": f"{platform.machine()}, {os.cpu_count()} cores, jax {jax.__version__} on "
                        f"{jax.devices()[0].platform}",
-            "wall_seconds": round(time.time() - _STARTED, 1),
+            "wall_seconds": process_wall_seconds(),
             "written": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
 
 
