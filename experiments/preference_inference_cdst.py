@@ -75,7 +75,7 @@ def main() -> None:
     from moiq_jax.algos.preference_inference import simplex_grid
     from moiq_jax.config import tuned
     from moiq_jax.experts import oracle_demonstrations
-    from moiq_jax.networks import networks_of_sizes
+    from moiq_jax.networks import networks_of_config
 
     start = time.time()
     env = envs.make("cdst")
@@ -94,7 +94,7 @@ def main() -> None:
     changed = np.any(np.abs(np.diff(prefs, axis=1)) > 1e-6, axis=(2, 3))  # [seeds, chunks - 1]
     last_change = np.array([np.flatnonzero(c).max() + 1 if c.any() else 0 for c in changed])
     c = config.offpolicy
-    nets = networks_of_sizes(c.hidden_sizes, env.reward_dim, env.action_size, c.action_scale)
+    nets = networks_of_config(c, env)
     candidates = simplex_grid(2, INTERVAL_RESOLUTION)
     behaviours = np.asarray(jax.jit(jax.vmap(lambda a: mpi.actor_behaviours(nets, a, env, jnp.asarray(candidates))))(
         result.best_params.actor))  # [seeds, K, 3] of the trainer's best model
