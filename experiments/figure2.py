@@ -8,8 +8,8 @@ mean and spread over seeds, with the experts' returns.
 
 MOIQ's runs are table1.py's cached sweep; GAIL's (paper_mujoco.gail_config) are cached beside them, or read from
 ``--gail-protocol``'s archive where GAIL's config is the same under both protocols (they differ in MOIQ alone). Writes
-``figure2.png`` and ``figure2.json`` (final EWMA return, and mean return over the last
-20% of training, per method and setting).
+``figure2.png`` and ``figure2.json`` (first evaluation's return, final EWMA return, and mean return over the
+last 20% of training, per method and setting).
 """
 
 from __future__ import annotations
@@ -48,10 +48,10 @@ def main() -> None:
         return {**{f"MOIQ beta={beta:g}": paper.evaluation_returns(moiq, beta) for beta in paper.MOIQ_BETAS},
                 "GAIL": paper.evaluation_returns(gail, None)}
 
-    final, last = paper.curves_figure(args.envs, methods_of, out / "figure2.png")
-    paper.write_outputs(out, "figure2", args, None, final_ewma_return=final, final_last_window_return=last,
+    returns = paper.curves_figure(args.envs, methods_of, out / "figure2.png")
+    paper.write_outputs(out, "figure2", args, None, **returns,
                         gail_protocol=paper.protocol_of(gail_args(args, args.envs[0])))
-    print(json.dumps({"final_ewma_return": final, "final_last_window_return": last}, indent=1))
+    print(json.dumps(returns, indent=1))
 
 
 if __name__ == "__main__":

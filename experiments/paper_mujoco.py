@@ -334,12 +334,13 @@ def ewma(values: np.ndarray, alpha: float = EWMA_ALPHA, axis: int = 0) -> np.nda
     return np.moveaxis(smoothed, 0, axis)
 
 
-def curves_figure(envs, methods_of, path: pathlib.Path, note: str = "") -> tuple[dict, dict]:
+def curves_figure(envs, methods_of, path: pathlib.Path, note: str = "") -> dict[str, dict]:
     """One row of learning-curve panels per env, one panel per expert preference: the mean and spread over
     seeds of each method's EWMA-smoothed evaluation returns (``methods_of(env)`` -> {method: (steps, returns
-    [seeds, evals, E])}, as ``evaluation_returns``) with the expert's return; saved to ``path``. Returns the
-    final EWMA return and the ``last_window_mean`` per env, preference and method (means over seeds)."""
-    final, last = {}, {}
+    [seeds, evals, E])}, as ``evaluation_returns``) with the expert's return; saved to ``path``. Returns, per env,
+    preference and method (means over seeds), the first evaluation's return (where training starts from), the
+    final EWMA return and the ``last_window_mean``, keyed by the names the figures' JSON gives them."""
+    first, final, last = {}, {}, {}
     fig, axes = plt.subplots(len(envs), 3, figsize=(13, 3.2 * len(envs)), layout="constrained", squeeze=False)
     for row, env in zip(axes, envs):
         methods = methods_of(env)
@@ -352,6 +353,7 @@ def curves_figure(envs, methods_of, path: pathlib.Path, note: str = "") -> tuple
                 mean, std = curves.mean(0), curves.std(0)
                 ax.plot(steps, mean, label=method)
                 ax.fill_between(steps, mean - std, mean + std, alpha=0.2)
+                first.setdefault(env, {}).setdefault(key, {})[method] = round(float(returns[:, 0, e].mean()), 2)
                 final.setdefault(env, {}).setdefault(key, {})[method] = round(float(mean[-1]), 2)
                 last.setdefault(env, {}).setdefault(key, {})[method] = round(
                     float(last_window_mean(steps, returns[:, :, e]).mean()), 2)
@@ -362,7 +364,7 @@ def curves_figure(envs, methods_of, path: pathlib.Path, note: str = "") -> tuple
         row[0].set_ylabel("EWMA scalarised return")
     axes[0][0].legend(fontsize=7)
     fig.savefig(path, dpi=120)
-    return final, last
+    return {"first_evaluation_return": first, "final_ewma_return": final, "final_last_window_return": last}
 
 
 def protocol_record(args) -> dict:

@@ -95,7 +95,7 @@ def test_tables_and_figure_files(outputs):
     assert [len(v) for v in figure3["hypervolume_per_seed"].values()] == [2, 2] and figure3["expert_hypervolume"] > 0
     for name, baseline in (("figure2", "GAIL"), ("figure4", "IQ-Learn")):  # final EWMA return per method
         record = json.loads((tmp_path / "mujoco_quick" / name / f"{name}.json").read_text())
-        for final in (record["final_ewma_return"], record["final_last_window_return"]):
+        for final in (record["first_evaluation_return"], record["final_ewma_return"], record["final_last_window_return"]):
             assert list(final["mo-halfcheetah"]) == ["[0.9, 0.1]", "[0.5, 0.5]", "[0.1, 0.9]"]
             assert all(list(m) == ["MOIQ beta=5", "MOIQ beta=0.5", baseline] for m in final["mo-halfcheetah"].values())
     table2_last = {tuple(json.loads(w)): r for w, r in
@@ -103,6 +103,10 @@ def test_tables_and_figure_files(outputs):
                    ["final_last_window_return"]["mo-halfcheetah"].items()}
     for r in table2["rows"]:  # Figure 2's MOIQ runs are Table 2's
         assert table2_last[tuple(r["preference"])]["MOIQ beta=5"] == pytest.approx(r["beta5_last"], abs=0.01)
+    first = json.loads((tmp_path / "mujoco_quick" / "figure2" / "figure2.json").read_text())["first_evaluation_return"]
+    history = [np.load(kept / f"beta5-seed{seed}" / "history.npz") for seed in (0, 1)]  # where the runs start from
+    assert [m["MOIQ beta=5"] for m in first["mo-halfcheetah"].values()] == pytest.approx(
+        np.mean([h["eval_scalar_return"][0] for h in history], 0), abs=0.01)
 
 
 def test_paper_summary_reads_every_table(outputs):
