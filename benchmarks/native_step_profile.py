@@ -19,6 +19,7 @@ import numpy as np
 from env_throughput import MUJOCO_ENVS, gym_steps_per_second, jax_steps_per_second, rollout_steps_per_second
 
 from moiq_jax import envs
+from moiq_jax.envs.mujoco.native import simulator
 
 
 def ms_per_call(fn, calls: int, repeats: int = 5) -> float:
@@ -43,7 +44,7 @@ def main() -> None:
 
     env = envs.make(args.env, backend="mujoco")
     state = envs.VmapWrapper(envs.AutoReset(env), n).reset(jax.random.key(0))
-    sim = env.sim
+    sim, one_thread = env.sim, simulator(type(env.task), 1)
     bits, pending = np.asarray(state.env_state.bits), np.asarray(state.env_state.pending)
     action = np.random.default_rng(0).uniform(-1, 1, (n, env.action_size)).astype(np.float32)
     values = env.values(state)
@@ -57,8 +58,7 @@ def main() -> None:
         ("host Simulator.step", ms_per_call(lambda: sim.step(bits, pending, action), args.calls)),
         (f"MuJoCo work, {sim.nthread} threads (run_chunks)", ms_per_call(lambda: sim.run_chunks(n, inputs, out, cfrc),
                                                                        args.calls)),
-        ("MuJoCo work, 1 thread", ms_per_call(lambda: sim._step_chunks(iter([0]), 1, n, n, inputs, out, cfrc),
-                                              args.calls)),
+        ("MuJoCo work, 1 thread", ms_per_call(lambda: one_thread.run_chunks(n, inputs, out, cfrc), args.calls)),
         (f"raw mujoco.rollout, episodes of {length}", n / rollout_steps_per_second(args.env, max(64, n), length) * 1e3),
     ]
     print(f"{args.env}, {n} envs: ms per call of {n} env steps (jax {jax.__version__} on {jax.devices()[0].platform})")
