@@ -245,6 +245,22 @@ def test_native_steps_are_deterministic_under_jit_vmap_scan(name="mo-ant"):
     assert first[1][2].any(), "no episode ended: the auto-reset path went untested"
 
 
+def test_native_host_function_is_the_jitted_step(name="mo-ant"):
+    """``Simulator.step``, the host function off a CPU (numpy in, new arrays out), gives what the jitted step
+    writes in place on a CPU, bit for bit, over a nested batch: from resets (pending noise) and after a step."""
+    base = envs.make(name, backend="mujoco").unwrapped
+    step = jax.jit(jax.vmap(jax.vmap(base.step)))
+    state = jax.vmap(jax.vmap(base.reset))(jax.random.split(jax.random.key(3), 6).reshape(2, 3))
+    for t in range(2):
+        action = jax.random.uniform(jax.random.key(t), (2, 3, base.action_size), minval=-1, maxval=1)
+        nxt = step(state, action)
+        host = base.sim.step(*(np.asarray(x) for x in (state.env_state.bits, state.env_state.pending, action)))
+        for got, want in zip(host, (nxt.env_state.bits, nxt.obs, nxt.reward, nxt.done)):
+            assert got.shape == want.shape and got.dtype == want.dtype
+            np.testing.assert_array_equal(got, np.asarray(want))
+        state = nxt
+
+
 # --- MJX backend ------------------------------------------------------------------------------------
 
 

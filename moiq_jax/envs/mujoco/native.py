@@ -3,20 +3,23 @@
 ``env_state`` is a ``NativeState``: MuJoCo's state as float64 values carried bit for bit as uint32
 pairs (JAX runs without x64, and rounding the state to float32 between steps makes rollouts drift
 apart): ``mj_getState`` for ``STATE_SPEC`` (time, qpos, qvel, act and the solver's warm start
-``qacc_warmstart``), then the main body's ``xpos`` where the task reads it. A step is one
-``jax.pure_callback`` with ``vmap_method="broadcast_all"``, so a whole (nested) ``vmap`` batch is one
-call; the callback sets each env's state into an ``MjData``, runs ``mj_step`` ``frame_skip`` times
-(and ``mj_rnePostConstraint`` where the task reads contact forces, as Gymnasium), reads the state
-back and applies the task's rules in float64 numpy, as Gymnasium does. Outputs depend only on inputs
-(every input of ``mj_step`` is set from the state), so steps are bit-reproducible and the step is
-pure: it runs under ``jit``, ``vmap`` and ``lax.scan``.
+``qacc_warmstart``), then the main body's ``xpos`` where the task reads it. A step is one host
+callback with ``vmap_method="broadcast_all"``, so a whole (nested) ``vmap`` batch is one call (on a
+CPU ``buffer_callback``, which fills XLA's output buffers in place; elsewhere ``pure_callback``); it
+sets each env's state into an ``MjData``, runs ``mj_step`` ``frame_skip`` times (and
+``mj_rnePostConstraint`` where the task reads contact forces, as Gymnasium), reads the state back and
+applies the task's rules in float64 numpy, as Gymnasium does. Outputs depend only on inputs (every input
+of ``mj_step`` is set from the state), so steps are bit-reproducible and the step is pure: it runs under
+``jit``, ``vmap`` and ``lax.scan``.
 
 Threads: the calling thread and ``nthread - 1`` workers of a persistent pool (one ``MjData`` each;
 MuJoCo's bindings release the GIL in ``mj_setState``, ``mj_step`` and ``mj_getState``) claim small
 chunks of envs from a shared counter until none is left, so no thread waits on another's fixed share.
 ``mujoco.rollout.Rollout`` is not used: it returns the state without the warm start
 (``mjSTATE_FULLPHYSICS``), so a step could not be continued exactly from its output; the loop of
-``mj_setState`` (state and controls), ``mj_step`` and ``mj_getState`` keeps it.
+``mj_setState`` (state and controls), ``mj_step`` and ``mj_getState`` keeps it. ``mujoco.batch.Batch``
+(whose state rows hold the warm start) would keep it too, but stepped no faster here
+(results/env_throughput/README.md).
 
 Reset and ``state_at`` need no physics and no callback: Gymnasium's ``mj_resetData`` + ``set_state``
 leaves time and warm start zero, the free root body's ``xpos`` equal to its ``qpos[:3]`` and ``cfrc_ext``
@@ -39,6 +42,7 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 from flax import struct
+from jax.experimental.buffer_callback import buffer_callback
 
 from moiq_jax.envs.base import is_concrete
 from moiq_jax.envs.mujoco.base import MujocoEnv, Physics, Task
@@ -128,22 +132,35 @@ class Simulator:
         return values
 
     def step(self, bits, pending, action):
-        """One env step of every state in (``bits``, ``pending``) under ``action``: (bits, obs, reward, done)."""
-        batch = action.shape[:-1]
-        values = self.with_pending(from_bits(bits).reshape(-1, self.width).copy(),
-                                   np.asarray(pending).reshape(-1, self.model.nq + self.model.nv))
-        n, ns = values.shape[0], self.nstate
-        action = np.asarray(action, np.float32).reshape(n, self.model.nu)
-        inputs = np.empty((n, ns + self.model.nu))
+        """One env step of every state in (``bits``, ``pending``) under ``action``: new arrays (bits, obs, reward,
+        done), each with ``action``'s batch shape."""
+        batch = np.shape(action)[:-1]
+        out = (np.empty((*batch, self.width, 2), np.uint32), np.empty((*batch, self.task.observation_size), np.float32),
+               np.empty((*batch, self.task.reward_dim), np.float32), np.empty(batch, bool))
+        self.step_into(out, bits, pending, action)
+        return out
+
+    def step_into(self, out, bits, pending, action):
+        """``step`` writing into ``out`` = (bits, obs, reward, done) in place: C-contiguous writable arrays, or
+        buffers numpy views as such (``buffer_callback``'s); MuJoCo writes the new states straight into ``bits``."""
+        out_bits, out_obs, out_reward, out_done = out = [np.asarray(x) for x in out]
+        if not all(x.flags.c_contiguous and x.flags.writeable for x in out):
+            raise ValueError("step_into needs C-contiguous writable output arrays")
+        bits, pending, action = (np.asarray(x) for x in (bits, pending, action))
+        nq, nv, nu, ns = self.model.nq, self.model.nv, self.model.nu, self.nstate
+        values = self.with_pending(from_bits(bits).reshape(-1, self.width).copy(), pending.reshape(-1, nq + nv))
+        n = values.shape[0]
+        action = np.asarray(action, np.float32).reshape(n, nu)
+        inputs = np.empty((n, ns + nu))
         inputs[:, :ns], inputs[:, ns:] = values[:, :ns], action  # ctrl as MjData holds it: float64 of the float32
-        out = np.empty_like(values)
+        new = out_bits.reshape(n, self.width, 2).view(np.float64)[..., 0]  # float64 [n, width], in place
         cfrc = np.empty((n, self.model.nbody, 6)) if self.task.contact_forces else None
-        self.run_chunks(n, inputs, out, cfrc)
-        before, after = self.physics(values), self.physics(out, cfrc)
+        self.run_chunks(n, inputs, new, cfrc)
+        before, after = self.physics(values), self.physics(new, cfrc)
         reward, done = self.task.reward_and_done(before, after, action, np)
-        obs = self.task.observe(after, np)
-        return (to_bits(out).reshape(*batch, self.width, 2), obs.astype(np.float32).reshape(*batch, -1),
-                reward.astype(np.float32).reshape(*batch, -1), np.asarray(done, bool).reshape(batch))
+        out_obs.reshape(n, -1)[...] = self.task.observe(after, np)
+        out_reward.reshape(n, -1)[...] = reward
+        out_done.reshape(n)[...] = done
 
     def run_chunks(self, n, inputs, out, cfrc):
         """Steps envs ``0..n-1`` in chunks of about ``n / (CHUNKS_PER_THREAD * nthread)`` envs that the calling
@@ -235,8 +252,13 @@ class NativeEnv(MujocoEnv):
                   jax.ShapeDtypeStruct((self.reward_dim,), jnp.float32),
                   jax.ShapeDtypeStruct((), jnp.bool_))
         env_state = state.env_state
-        bits, obs, reward, done = jax.pure_callback(sim.step, shapes, env_state.bits, env_state.pending, action,
-                                                    vmap_method="broadcast_all")
+        # On a CPU, XLA hands the callback its buffers to fill in place (no copies, ~10x less fixed cost per call than
+        # pure_callback's); elsewhere the arrays travel to the host and back.
+        bits, obs, reward, done = jax.lax.platform_dependent(
+            env_state.bits, env_state.pending, action,
+            cpu=lambda *args: buffer_callback(lambda ctx, out, *xs: sim.step_into(out, *xs), shapes,
+                                              vmap_method="broadcast_all")(*args),
+            default=lambda *args: jax.pure_callback(sim.step, shapes, *args, vmap_method="broadcast_all"))
         return state.replace(env_state=NativeState(bits, jnp.zeros_like(env_state.pending)), obs=obs, reward=reward,
                              done=done, truncated=jnp.zeros((), bool))
 
