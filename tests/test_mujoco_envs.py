@@ -27,7 +27,7 @@ import numpy as np
 import pytest
 
 from moiq_jax import envs
-from moiq_jax.envs.mujoco import native
+from moiq_jax.envs.mujoco import TASKS, native
 
 mo_gym = pytest.importorskip("mo_gymnasium")
 
@@ -243,6 +243,40 @@ def test_native_steps_are_deterministic_under_jit_vmap_scan(name="mo-ant"):
         np.testing.assert_array_equal(np.asarray(state.reward), first[1][1][t, 1, 2])
     np.testing.assert_array_equal(np.asarray(state.env_state.bits), first[0].env_state.bits[1, 2])
     assert first[1][2].any(), "no episode ended: the auto-reset path went untested"
+
+
+class AntWithoutContactForces(TASKS["mo-ant"]):
+    """The Ant's model and main body, for the ``"batch"`` engine (which cannot compute contact forces)."""
+
+    contact_forces = False
+
+
+@pytest.mark.parametrize("task_class", [TASKS["mo-hopper"], AntWithoutContactForces])
+def test_native_engines_step_alike(task_class):
+    """``mujoco.batch.Batch`` and the per-env loop, at 1 and 2 threads, give the same bits for states
+    (warm start included) and the main body's xpos, over 40 chained steps from varied starts."""
+    engines = [native.Simulator(task_class(), nthread, engine) for engine in native.ENGINES for nthread in (1, 2)]
+    sim, rng, n = engines[0], np.random.default_rng(0), 12
+    model = sim.model
+    inputs = np.zeros((n, sim.nstate + model.nu))
+    for i in range(n):
+        qpos = model.qpos0 + rng.uniform(-0.1, 0.1, model.nq)
+        inputs[i, :sim.nstate] = sim.start_values(qpos, rng.uniform(-0.5, 0.5, model.nv))[:sim.nstate]
+    chained = [inputs.copy() for _ in engines]
+    for _ in range(40):
+        controls = rng.uniform(-1, 1, (n, model.nu))
+        outs = []
+        for engine, x in zip(engines, chained):
+            x[:, sim.nstate:] = controls
+            out = np.full((n, sim.width), np.nan)
+            engine.advance(n, x, out, None)
+            x[:, :sim.nstate] = out[:, :sim.nstate]
+            outs.append(out)
+        for engine, out in zip(engines[1:], outs[1:]):
+            np.testing.assert_array_equal(out, outs[0], err_msg=f"{engine.engine}, {engine.nthread} threads")
+    assert np.any(outs[0][:, sim.nstate - model.nv:sim.nstate] != 0), "the warm start went untested"
+    with pytest.raises(ValueError, match="contact forces"):
+        native.Simulator(TASKS["mo-ant"](), 1, "batch")
 
 
 def test_native_host_function_is_the_jitted_step(name="mo-ant"):

@@ -12,21 +12,22 @@ applies the task's rules in float64 numpy, as Gymnasium does. Outputs depend onl
 of ``mj_step`` is set from the state), so steps are bit-reproducible and the step is pure: it runs under
 ``jit``, ``vmap`` and ``lax.scan``.
 
-Threads: the calling thread and ``nthread - 1`` workers of a persistent pool (one ``MjData`` each;
-MuJoCo's bindings release the GIL in ``mj_setState``, ``mj_step`` and ``mj_getState``) claim small
-chunks of envs from a shared counter until none is left, so no thread waits on another's fixed share.
-``mujoco.rollout.Rollout`` is not used: it returns the state without the warm start
-(``mjSTATE_FULLPHYSICS``), so a step could not be continued exactly from its output; the loop of
-``mj_setState`` (state and controls), ``mj_step`` and ``mj_getState`` keeps it. ``mujoco.batch.Batch``
-(whose state rows hold the warm start) would keep it too, but stepped no faster here
-(results/env_throughput/README.md).
+MuJoCo's work: ``mujoco.batch.Batch`` (MuJoCo's own batched stepping on its C thread pool; its state
+rows are ``mjSTATE_INTEGRATION``, warm start included, so a step continues exactly from its output)
+steps the batch, unless the task reads contact forces: Gymnasium computes ``cfrc_ext`` with
+``mj_rnePostConstraint`` after the step, which a ``Batch`` cannot run (nor ``mujoco.rollout``, which also
+drops the warm start). Those tasks (the Ant) step in a loop of ``mj_setState`` (state and controls),
+``mj_step``, ``mj_rnePostConstraint`` and ``mj_getState`` on the calling thread and ``nthread - 1`` workers
+of a persistent pool (one ``MjData`` each; MuJoCo's bindings release the GIL in these calls), which claim
+small chunks of envs from a shared counter until none is left, so no thread waits on another's fixed share.
+The two engines step bit for bit alike (tested).
 
 Reset and ``state_at`` need no physics and no callback: Gymnasium's ``mj_resetData`` + ``set_state``
 leaves time and warm start zero, the free root body's ``xpos`` equal to its ``qpos[:3]`` and ``cfrc_ext``
 zero. So a reset holds ``qpos0`` as float64 bits and its float32 noise as ``pending``, which the next
 step adds in float64 (as Gymnasium adds its noise) before stepping; ``state_at`` of float64 numpy arrays
-holds them exactly. (Tests check both against ``mj_forward``.) A callback costs about as much as
-stepping a few envs, and ``AutoReset`` resets every step.
+holds them exactly. (Tests check both against ``mj_forward``.) This keeps resets cheap: ``AutoReset``
+computes one at every step.
 """
 
 from __future__ import annotations
@@ -35,6 +36,7 @@ import functools
 import itertools
 import os
 import queue
+import threading
 from concurrent.futures import ThreadPoolExecutor
 
 import jax
@@ -43,12 +45,15 @@ import mujoco
 import numpy as np
 from flax import struct
 from jax.experimental.buffer_callback import buffer_callback
+from mujoco.batch import Batch
 
 from moiq_jax.envs.base import is_concrete
 from moiq_jax.envs.mujoco.base import MujocoEnv, Physics, Task
 
 STATE_SPEC = int(mujoco.mjtState.mjSTATE_FULLPHYSICS | mujoco.mjtState.mjSTATE_WARMSTART)
 INPUT_SPEC = STATE_SPEC | int(mujoco.mjtState.mjSTATE_CTRL)  # the state, then the controls: one mj_setState per env
+BATCH_ROW_SPEC = int(mujoco.mjtState.mjSTATE_INTEGRATION)  # what a mujoco.batch.Batch's state rows hold
+ENGINES = ("batch", "loop")
 MIN_ENVS_TO_SPLIT = 4  # smaller batches are stepped on the calling thread
 CHUNKS_PER_THREAD = 16
 
@@ -76,9 +81,10 @@ def from_bits(bits: np.ndarray) -> np.ndarray:
 
 
 class Simulator:
-    """One task's model, a pool of ``MjData`` and threads, and the batched host functions of the backend."""
+    """One task's model, its engine (``"batch"`` or ``"loop"``, see the module docstring; by default the loop
+    only for tasks that read contact forces) with ``nthread`` threads, and the batched host functions."""
 
-    def __init__(self, task: Task, nthread: int):
+    def __init__(self, task: Task, nthread: int, engine: str | None = None):
         self.task = task
         self.model = model = task.mj_model
         self.nthread = nthread
@@ -99,11 +105,22 @@ class Simulator:
         mujoco.mj_setState(model, data, probe, INPUT_SPEC)
         if mujoco.mj_stateSize(model, INPUT_SPEC) != probe.size or not np.array_equal(data.ctrl, probe[self.nstate:]):
             raise ValueError(f"{task.xml_file}: mj_setState does not lay out the controls after the state")
-        self.datas: queue.SimpleQueue = queue.SimpleQueue()  # one MjData per thread stepping at a time
-        for _ in range(nthread):
-            self.datas.put(mujoco.MjData(model))
-        # the calling thread steps a chunk too, so nthread - 1 workers
-        self.pool = ThreadPoolExecutor(nthread - 1, thread_name_prefix="moiq-mujoco") if nthread > 1 else None
+        self.engine = engine or ("loop" if task.contact_forces else "batch")
+        if self.engine not in ENGINES:
+            raise ValueError(f"engine must be one of {ENGINES}, got {engine!r}")
+        if self.engine == "batch":
+            if task.contact_forces:
+                raise ValueError(f"{type(task).__name__} reads contact forces, which only the 'loop' engine computes")
+            self.batches: dict[int, Batch] = {}  # one per batch size
+            self.lock = threading.Lock()  # a Batch must not be used from two threads at once
+            self.input_rows = component_columns(model, INPUT_SPEC, BATCH_ROW_SPEC)
+            self.state_rows = self.input_rows[:self.nstate]
+        else:
+            self.datas: queue.SimpleQueue = queue.SimpleQueue()  # one MjData per thread stepping at a time
+            for _ in range(nthread):
+                self.datas.put(mujoco.MjData(model))
+            # the calling thread steps a chunk too, so nthread - 1 workers
+            self.pool = ThreadPoolExecutor(nthread - 1, thread_name_prefix="moiq-mujoco") if nthread > 1 else None
 
     def physics(self, values: np.ndarray, cfrc_ext: np.ndarray | None = None) -> Physics:
         """The rules' view of float64 states ``[n, width]``."""
@@ -155,15 +172,37 @@ class Simulator:
         inputs[:, :ns], inputs[:, ns:] = values[:, :ns], action  # ctrl as MjData holds it: float64 of the float32
         new = out_bits.reshape(n, self.width, 2).view(np.float64)[..., 0]  # float64 [n, width], in place
         cfrc = np.empty((n, self.model.nbody, 6)) if self.task.contact_forces else None
-        self.run_chunks(n, inputs, new, cfrc)
+        self.advance(n, inputs, new, cfrc)
         before, after = self.physics(values), self.physics(new, cfrc)
         reward, done = self.task.reward_and_done(before, after, action, np)
         out_obs.reshape(n, -1)[...] = self.task.observe(after, np)
         out_reward.reshape(n, -1)[...] = reward
         out_done.reshape(n)[...] = done
 
+    def advance(self, n, inputs, out, cfrc):
+        """MuJoCo's env step of envs ``0..n-1``: ``inputs`` ``[n, nstate + nu]`` (state, ctrl) to ``out``
+        ``[n, width]`` (state, main body's xpos) and ``cfrc`` (contact forces, or None), on the engine."""
+        if self.engine == "batch":
+            self.run_batch(n, inputs, out)
+        else:
+            self.run_chunks(n, inputs, out, cfrc)
+
+    def run_batch(self, n, inputs, out):
+        """``advance`` on a ``mujoco.batch.Batch`` of ``n`` simulations: rows in, ``frame_skip`` substeps, rows out."""
+        with self.lock:
+            batch = self.batches.get(n)
+            if batch is None:
+                batch = self.batches[n] = Batch(self.model, n, self.nthread)
+                if self.body is not None:
+                    batch.bind("xpos")  # a derived field is copied out from the first call after it is bound
+            batch.state[:, self.input_rows] = inputs
+            batch.step(nstep=self.task.frame_skip)
+            out[:, :self.nstate] = batch.state[:, self.state_rows]
+            if self.body is not None:
+                out[:, self.nstate:] = batch.bind("xpos")[:, self.body]
+
     def run_chunks(self, n, inputs, out, cfrc):
-        """Steps envs ``0..n-1`` in chunks of about ``n / (CHUNKS_PER_THREAD * nthread)`` envs that the calling
+        """``advance`` in a loop over envs, in chunks of about ``n / (CHUNKS_PER_THREAD * nthread)`` envs that the calling
         thread and ``nthread - 1`` pool workers claim one at a time until none is left, so that a thread that
         starts late or steps slower states takes fewer chunks (no thread waits for another's fixed share)."""
         size = max(1, -(-n // (CHUNKS_PER_THREAD * self.nthread)))
@@ -200,10 +239,21 @@ class Simulator:
             self.datas.put(data)
 
 
+def component_columns(model: mujoco.MjModel, spec: int, within: int) -> np.ndarray:
+    """The columns that a state vector of ``spec`` occupies in one of ``within`` (a superset): MuJoCo lays
+    state components out in the order of their ``mjtState`` bits."""
+    columns = []
+    for bit in (1 << i for i in range(within.bit_length())):
+        if spec & bit:
+            offset = mujoco.mj_stateSize(model, within & (bit - 1))
+            columns.extend(range(offset, offset + mujoco.mj_stateSize(model, bit)))
+    return np.asarray(columns)
+
+
 @functools.cache
-def simulator(task_class: type[Task], nthread: int) -> Simulator:
-    """One ``Simulator`` (and thread pool) per task and thread count, shared by every env built."""
-    return Simulator(task_class(), nthread)
+def simulator(task_class: type[Task], nthread: int, engine: str | None = None) -> Simulator:
+    """One ``Simulator`` (and its threads) per task, thread count and engine, shared by every env built."""
+    return Simulator(task_class(), nthread, engine)
 
 
 def default_threads() -> int:
