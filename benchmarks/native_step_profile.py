@@ -8,7 +8,9 @@ Per call of ``num_envs`` env steps, in ms: the step inside a jitted ``lax.scan``
 (``Simulator.advance``) on each engine the task allows, on all threads and on one; and raw
 ``mujoco.rollout`` for as many env steps in episodes of the random-action length. The scan's excess
 over the host function is the callback's round trip and the scan's own XLA work (actions, resets);
-the host function's excess over the MuJoCo work is the task's rules and the state's conversions.
+the host function's excess over the MuJoCo work is the task's rules and the state's conversions. Last,
+the fixed cost per call of ``pure_callback`` and of ``buffer_callback`` (which the step uses on a CPU), each
+with a callback that only fills the step's outputs with constants.
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ import argparse
 import time
 
 import jax
+import jax.numpy as jnp
 import mujoco
 import numpy as np
 from env_throughput import MUJOCO_ENVS, gym_steps_per_second, jax_steps_per_second, rollout_steps_per_second
@@ -36,6 +39,42 @@ def ms_per_call(fn, batches: list, repeats: int = 5) -> float:
             fn(*batch)
         best = min(best, (time.perf_counter() - start) / len(batches) * 1e3)
     return best
+
+
+def constant_callback_ms(env, n: int, kind: str, calls: int = 1000) -> float:
+    """ms per call of a host callback that only fills the step's outputs with constants, ``calls`` calls in a jitted
+    ``lax.scan`` over ``n`` vmapped envs: the fixed cost of ``pure_callback`` or ``buffer_callback`` alone."""
+    from jax.experimental.buffer_callback import buffer_callback
+
+    sim = env.sim
+    outputs = sim.step(*(np.asarray(x) for x in (visited_inputs(env, n, 1)[0])))
+    shapes = tuple(jax.ShapeDtypeStruct(x.shape[1:], x.dtype) for x in outputs)
+
+    def fill(ctx, out, *inputs):
+        for buffer, value in zip(out, outputs):
+            np.asarray(buffer)[...] = value
+
+    def one(bits, pending, action):
+        if kind == "pure_callback":
+            return jax.pure_callback(lambda *inputs: outputs, shapes, bits, pending, action, vmap_method="broadcast_all")
+        return buffer_callback(fill, shapes, vmap_method="broadcast_all")(bits, pending, action)
+
+    @jax.jit
+    def run(bits, pending, action):
+        def body(carry, _):
+            bits, _, reward, done = jax.vmap(one)(*carry)
+            return (bits, carry[1] + reward.sum(), carry[2]), done.sum()
+
+        return jax.lax.scan(body, (bits, pending, action), None, length=calls)[1].sum()
+
+    bits, pending, action = (jnp.asarray(x) for x in visited_inputs(env, n, 1)[0])
+    run(bits, pending, action).block_until_ready()
+    best = float("inf")
+    for _ in range(3):
+        start = time.perf_counter()
+        run(bits, pending, action).block_until_ready()
+        best = min(best, time.perf_counter() - start)
+    return best / calls * 1e3
 
 
 def visited_inputs(env, n: int, count: int) -> list:
@@ -89,6 +128,8 @@ def main() -> None:
         print(f"  {what:<44} {ms:7.3f} ms   {ms / raw:5.2f}x raw rollout")
     scan, host, own_work = (ms for _, ms in rows[:3])
     print(f"  {'callback round trip and XLA work (scan - host)':<44} {scan - host:7.3f} ms")
+    for kind in ("pure_callback", "buffer_callback"):
+        print(f"  {f'a {kind} filling constants, per call':<44} {constant_callback_ms(env, n, kind):7.3f} ms")
     print(f"  {'rules and conversions (host - MuJoCo work)':<44} {host - own_work:7.3f} ms")
 
 
