@@ -1,6 +1,8 @@
 """One update of SAC, MOIQ and IQ-Learn on these CPU cores, in one run: ms per update, GFLOP/s (XLA's count of
 the compiled update), its share of a large float32 matrix product's rate measured in the same run, and SAC
-against the same step written as a peer would (CleanRL-style JAX: flax MLPs, optax adam, twin Q).
+against the same step written as a peer would (CleanRL-style JAX: flax MLPs, optax adam, twin Q): "peer" with
+SAC's usual scalar Q(s, a), "peer-vec" with the vector critic Q(s, a, w) in R^d that the library's SAC learns
+(the preference as an input, one output per objective), the same computation as ours.
 
     python benchmarks/update_speed.py [--updates 50] [--repeats 3] [--sizes 256:256 128:128] [--only moiq3 iq3]
 
@@ -120,14 +122,17 @@ def flops(fn, *args) -> float:
 # ---- the peer: a CleanRL-style JAX SAC step (scalar reward, no preference input) ----
 
 class QNetwork(nn.Module):
+    """Q(s, a), or with ``outputs`` > 0 a vector Q(s, a, w) of that many objectives taking the preference w."""
+
     hidden: int
+    outputs: int = 0
 
     @nn.compact
-    def __call__(self, obs, action):
-        x = jnp.concatenate([obs, action], -1)
+    def __call__(self, obs, action, preference=None):
+        x = jnp.concatenate([obs, action] if preference is None else [obs, action, preference], -1)
         x = nn.relu(nn.Dense(self.hidden)(x))
         x = nn.relu(nn.Dense(self.hidden)(x))
-        return nn.Dense(1)(x)[..., 0]
+        return nn.Dense(self.outputs)(x) if self.outputs else nn.Dense(1)(x)[..., 0]
 
 
 class Actor(nn.Module):
@@ -142,16 +147,26 @@ class Actor(nn.Module):
         return mean, -5.0 + 0.5 * 7.0 * (log_std + 1)
 
 
-def peer(experts: int, hidden: int, batch: int, updates: int, sample: bool) -> Case:
+def peer(experts: int, hidden: int, batch: int, updates: int, sample: bool, vector: bool = False) -> Case:
     """CleanRL's SAC (sac_continuous_action, in JAX as its td3_jax/sbx write it): two Q TrainStates, their targets,
-    an actor, a learnt log alpha; one jitted step does critic, actor, alpha and Polyak. ``experts`` copies vmapped."""
-    qf, actor = QNetwork(hidden), Actor(hidden)
+    an actor, a learnt log alpha; one jitted step does critic, actor, alpha and Polyak. ``experts`` copies vmapped.
+    With ``vector``, the same step on the computation the library's SAC does: each Q takes the expert's preference
+    w and returns one value per objective, fitted to the vector reward; the twins are compared on w . Q."""
+    qf, actor = QNetwork(hidden, REWARD if vector else 0), Actor(hidden)
     tx = optax.adam(LR)
     obs0, act0 = jnp.zeros((1, OBS)), jnp.zeros((1, ACTION))
+    prefs = jnp.asarray(PREFERENCES[:experts])
+
+    def q_of(q, obs, action, w):
+        return qf.apply(q, obs, action, jnp.broadcast_to(w, (obs.shape[0], REWARD))) if vector else qf.apply(q, obs, action)
+
+    def scalar(q, w):
+        return q @ w if vector else q
 
     def init(key):
         k1, k2, k3 = jax.random.split(key, 3)
-        q1, q2, pi = qf.init(k1, obs0, act0), qf.init(k2, obs0, act0), actor.init(k3, obs0)
+        w0 = (jnp.zeros((1, REWARD)),) if vector else ()
+        q1, q2, pi = qf.init(k1, obs0, act0, *w0), qf.init(k2, obs0, act0, *w0), actor.init(k3, obs0)
         log_alpha = jnp.log(0.2)
         return {"q1": q1, "q2": q2, "t1": q1, "t2": q2, "pi": pi, "log_alpha": log_alpha, "q_opt": tx.init((q1, q2)),
                     "pi_opt": tx.init(pi), "a_opt": tx.init(log_alpha)}
@@ -165,15 +180,20 @@ def peer(experts: int, hidden: int, batch: int, updates: int, sample: bool) -> C
                            - jnp.log(1 - a**2 + 1e-6), -1)
         return a, log_prob
 
-    def step(s, b, key):
+    def step(s, b, w, key):
         k1, k2 = jax.random.split(key)
         alpha = jnp.exp(s["log_alpha"])
         next_a, next_lp = sample_action(s["pi"], b["next_obs"], k1)
-        next_q = jnp.minimum(qf.apply(s["t1"], b["next_obs"], next_a), qf.apply(s["t2"], b["next_obs"], next_a))
-        target = b["reward"][:, 0] + (1 - b["done"]) * GAMMA * (next_q - alpha * next_lp)
+        next_q1, next_q2 = q_of(s["t1"], b["next_obs"], next_a, w), q_of(s["t2"], b["next_obs"], next_a, w)
+        if vector:
+            next_q = jnp.where((scalar(next_q1, w) <= scalar(next_q2, w))[:, None], next_q1, next_q2)
+            target = b["reward"] + ((1 - b["done"]) * GAMMA)[:, None] * (next_q - (alpha * next_lp)[:, None])
+        else:
+            target = b["reward"][:, 0] + (1 - b["done"]) * GAMMA * (jnp.minimum(next_q1, next_q2) - alpha * next_lp)
 
         def q_loss(qs):
-            return sum(jnp.mean((qf.apply(q, b["obs"], b["action"]) - target) ** 2) for q in qs)
+            errors = [(q_of(q, b["obs"], b["action"], w) - target) ** 2 for q in qs]
+            return sum(jnp.mean(jnp.sum(e, -1) if vector else e) for e in errors)
 
         grads = jax.grad(q_loss)((s["q1"], s["q2"]))
         upd, q_opt = tx.update(grads, s["q_opt"])
@@ -181,7 +201,7 @@ def peer(experts: int, hidden: int, batch: int, updates: int, sample: bool) -> C
 
         def pi_loss(pi):
             a, lp = sample_action(pi, b["obs"], k2)
-            q = jnp.minimum(qf.apply(q1, b["obs"], a), qf.apply(q2, b["obs"], a))
+            q = jnp.minimum(scalar(q_of(q1, b["obs"], a, w), w), scalar(q_of(q2, b["obs"], a, w), w))
             return jnp.mean(alpha * lp - q), lp
 
         grads, lp = jax.grad(pi_loss, has_aux=True)(s["pi"])
@@ -203,7 +223,7 @@ def peer(experts: int, hidden: int, batch: int, updates: int, sample: bool) -> C
             def body(models, k):
                 batch_key, step_key = jax.random.split(k)
                 b = policy_batch(buffers, None, batch_key if sample else jax.random.PRNGKey(3), batch)
-                return jax.vmap(step)(models, b, jax.random.split(step_key, experts)), None
+                return jax.vmap(step)(models, b, prefs, jax.random.split(step_key, experts)), None
 
             models, _ = jax.lax.scan(body, models, jax.random.split(key, n))
             return models, buffers
@@ -211,7 +231,7 @@ def peer(experts: int, hidden: int, batch: int, updates: int, sample: bool) -> C
 
     state = (jax.vmap(init)(jax.random.split(key, experts)), buffers)
     program, _ = compiled(scanned(updates), state, key)
-    return Case(f"peer SAC x{experts}", program, state, flops(scanned(1), state, key))
+    return Case(f"peer{'-vec' if vector else ''} SAC x{experts}", program, state, flops(scanned(1), state, key))
 
 
 def best_seconds(case: Case, repeats: int) -> float:
@@ -228,7 +248,7 @@ def main() -> None:
     parser.add_argument("--updates", type=int, default=50, help="updates per timed program (one lax.scan)")
     parser.add_argument("--repeats", type=int, default=3, help="timings per program; the best counts")
     parser.add_argument("--sizes", nargs="+", default=["256:256", "128:128"], help="hidden:batch pairs")
-    parser.add_argument("--only", nargs="+", default=None, help="a subset of: sac1 sac3 moiq3 iq3 peer1 peer3")
+    parser.add_argument("--only", nargs="+", default=None, help="a subset of: sac1 sac3 moiq3 iq3 peer1 peer3 peervec1 peervec3")
     parser.add_argument("--no-sampling", action="store_true", help="also time the update on a fixed batch")
     args = parser.parse_args()
     print(f"{os.cpu_count()} cores, jax {jax.__version__} {jax.default_backend()}; load average at start "
@@ -237,30 +257,30 @@ def main() -> None:
     for size in args.sizes:
         hidden, batch = map(int, size.split(":"))
         print(f"\n== hidden {hidden}x{hidden}, batch {batch} per expert (IQ/MOIQ: {batch} expert + {batch} policy rows)")
-        print(f"{'update':<14}{'ms/update':>10}{'MFLOP':>9}{'GFLOP/s':>9}{'% matmul':>10}{'matmul GF/s':>12}"
+        print(f"{'update':<16}{'ms/update':>10}{'MFLOP':>9}{'GFLOP/s':>9}{'% matmul':>10}{'matmul GF/s':>12}"
               f"{'ms no-sampling':>16}")
         rows = {}
         specs = [("sac", 1), ("sac", 3), ("moiq", 3), ("iq", 3)]
-        for algorithm, experts in [*specs, ("peer", 1), ("peer", 3)]:
+        for algorithm, experts in [*specs, ("peer", 1), ("peer", 3), ("peervec", 1), ("peervec", 3)]:
             if args.only and f"{algorithm}{experts}" not in args.only:
                 continue
             figures = []
             for sample in (True, False) if args.no_sampling else (True,):
-                case = (peer(experts, hidden, batch, args.updates, sample) if algorithm == "peer"
-                        else ours(algorithm, experts, hidden, batch, args.updates, sample))
+                case = (peer(experts, hidden, batch, args.updates, sample, vector=algorithm == "peervec")
+                        if algorithm.startswith("peer") else ours(algorithm, experts, hidden, batch, args.updates, sample))
                 figures.append((case, best_seconds(case, args.repeats) / args.updates))
             case, seconds = figures[0]
             peak = matmul_gflops()
             rate = case.flops / seconds / 1e9
             rows[case.name] = seconds
             extra = f"{1e3 * figures[1][1]:>16.2f}" if len(figures) > 1 else ""
-            print(f"{case.name:<14}{1e3 * seconds:>10.2f}{case.flops / 1e6:>9.1f}{rate:>9.1f}{100 * rate / peak:>9.0f}%"
+            print(f"{case.name:<16}{1e3 * seconds:>10.2f}{case.flops / 1e6:>9.1f}{rate:>9.1f}{100 * rate / peak:>9.0f}%"
                   f"{peak:>12.0f}{extra}", flush=True)
         for experts in (1, 3):
-            if f"SAC x{experts}" not in rows or f"peer SAC x{experts}" not in rows:
-                continue
-            print(f"SAC x{experts} vs peer: {rows[f'peer SAC x{experts}'] / rows[f'SAC x{experts}']:.2f}x the peer's "
-                  f"speed")
+            for peer_name in ("peer", "peer-vec"):
+                theirs, mine = rows.get(f"{peer_name} SAC x{experts}"), rows.get(f"SAC x{experts}")
+                if theirs and mine:
+                    print(f"SAC x{experts} vs {peer_name}: {theirs / mine:.2f}x the {peer_name}'s speed")
     print(f"\nload average at end {' '.join(f'{x:.1f}' for x in os.getloadavg())}")
 
 
