@@ -293,6 +293,10 @@ def test_native_host_function_is_the_jitted_step(name="mo-ant"):
             assert got.shape == want.shape and got.dtype == want.dtype
             np.testing.assert_array_equal(got, np.asarray(want))
         state = nxt
+    inputs = (np.asarray(x) for x in (state.env_state.bits, state.env_state.pending, action))
+    strided = np.empty((2, 3, 2 * base.observation_size), np.float32)[..., ::2]  # not C-contiguous: a reshape would copy it
+    with pytest.raises(ValueError, match="C-contiguous"):
+        base.sim.step_into((host[0].copy(), strided, host[2].copy(), host[3].copy()), *inputs)
 
 
 # --- MJX backend ------------------------------------------------------------------------------------
