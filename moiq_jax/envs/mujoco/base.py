@@ -5,7 +5,7 @@ A ``Task`` holds one task's constants (MJCF file, frame skip, reset noise, sizes
 main body's ``xpos`` and ``cfrc_ext``. The rules take the array namespace ``xp`` and index with
 ``[..., i]``, so the same code runs on one MJX state in ``jax.numpy`` (float32) and on a batch of
 MuJoCo states in ``numpy`` (float64, as Gymnasium computes them). The backends are ``mjx_env.MjxEnv``
-(pure JAX) and ``native.NativeEnv`` (MuJoCo's C engine behind ``jax.pure_callback``); ``MujocoEnv``
+(pure JAX) and ``native.NativeEnv`` (MuJoCo's C engine behind a host callback); ``MujocoEnv``
 is what they share: the model, ``dt``, the reset noise and the env protocol's sizes.
 
 Gymnasium's step is ``mj_step`` ``frame_skip`` times, then ``mj_rnePostConstraint`` where the task
