@@ -25,7 +25,7 @@ import numpy as np
 from env_throughput import MUJOCO_ENVS, gym_steps_per_second, jax_steps_per_second, rollout_steps_per_second
 
 from moiq_jax import envs
-from moiq_jax.envs.mujoco.native import ENGINES, from_bits, simulator
+from moiq_jax.envs.mujoco.native import ENGINES, simulator
 
 
 def ms_per_call(fn, batches: list, repeats: int = 5) -> float:
@@ -41,13 +41,14 @@ def ms_per_call(fn, batches: list, repeats: int = 5) -> float:
     return best
 
 
-def constant_callback_ms(env, n: int, kind: str, calls: int = 1000) -> float:
+def constant_callback_ms(env, batch, kind: str, calls: int = 1000) -> float:
     """ms per call of a host callback that only fills the step's outputs with constants, ``calls`` calls in a jitted
-    ``lax.scan`` over ``n`` vmapped envs: the fixed cost of ``pure_callback`` or ``buffer_callback`` alone."""
+    ``lax.scan`` over the envs of ``batch`` (bits, pending, action): the fixed cost of ``pure_callback`` or
+    ``buffer_callback`` alone."""
     from jax.experimental.buffer_callback import buffer_callback
 
     sim = env.sim
-    outputs = sim.step(*(np.asarray(x) for x in (visited_inputs(env, n, 1)[0])))
+    outputs = sim.step(*batch)
     shapes = tuple(jax.ShapeDtypeStruct(x.shape[1:], x.dtype) for x in outputs)
 
     def fill(ctx, out, *inputs):
@@ -67,7 +68,7 @@ def constant_callback_ms(env, n: int, kind: str, calls: int = 1000) -> float:
 
         return jax.lax.scan(body, (bits, pending, action), None, length=calls)[1].sum()
 
-    bits, pending, action = (jnp.asarray(x) for x in visited_inputs(env, n, 1)[0])
+    bits, pending, action = (jnp.asarray(x) for x in batch)
     run(bits, pending, action).block_until_ready()
     best = float("inf")
     for _ in range(3):
@@ -103,11 +104,7 @@ def main() -> None:
     cfrc = np.empty((n, env.mj_model.nbody, 6)) if sim.task.contact_forces else None
     out = np.empty((n, sim.width))
 
-    def work_inputs(bits, pending, action):
-        values = sim.with_pending(from_bits(bits).copy(), pending)
-        return np.concatenate([values[:, :sim.nstate], action.astype(np.float64)], axis=1)
-
-    work = [(work_inputs(*batch),) for batch in visited]
+    work = [(sim.inputs_of(*batch)[2],) for batch in visited]
     engines = [engine for engine in ENGINES if engine == "loop" or not sim.task.contact_forces]
     length = round(gym_steps_per_second(MUJOCO_ENVS[args.env], 1.0)[1])
     rows = [
@@ -129,7 +126,7 @@ def main() -> None:
     scan, host, own_work = (ms for _, ms in rows[:3])
     print(f"  {'callback round trip and XLA work (scan - host)':<44} {scan - host:7.3f} ms")
     for kind in ("pure_callback", "buffer_callback"):
-        print(f"  {f'a {kind} filling constants, per call':<44} {constant_callback_ms(env, n, kind):7.3f} ms")
+        print(f"  {f'a {kind} filling constants, per call':<44} {constant_callback_ms(env, visited[0], kind):7.3f} ms")
     print(f"  {'rules and conversions (host - MuJoCo work)':<44} {host - own_work:7.3f} ms")
 
 

@@ -157,19 +157,26 @@ class Simulator:
         self.step_into(out, bits, pending, action)
         return out
 
+    def inputs_of(self, bits, pending, action):
+        """What a step of (``bits``, ``pending``) under ``action`` starts from, flat over the batch: the float64
+        values ``[n, width]`` (pending offsets added), the float32 actions ``[n, nu]``, and MuJoCo's input rows
+        ``[n, nstate + nu]`` (the state, then the controls as ``MjData`` holds them: float64 of the float32)."""
+        bits, pending, action = (np.asarray(x) for x in (bits, pending, action))
+        nq, nv, nu, ns = self.model.nq, self.model.nv, self.model.nu, self.nstate
+        values = self.with_pending(from_bits(bits).reshape(-1, self.width).copy(), pending.reshape(-1, nq + nv))
+        action = action.astype(np.float32, copy=False).reshape(-1, nu)
+        inputs = np.empty((values.shape[0], ns + nu))
+        inputs[:, :ns], inputs[:, ns:] = values[:, :ns], action
+        return values, action, inputs
+
     def step_into(self, out, bits, pending, action):
         """``step`` writing into ``out`` = (bits, obs, reward, done) in place: C-contiguous writable arrays, or
         buffers numpy views as such (``buffer_callback``'s); MuJoCo writes the new states straight into ``bits``."""
         out_bits, out_obs, out_reward, out_done = out = [np.asarray(x) for x in out]
         if not all(x.flags.c_contiguous and x.flags.writeable for x in out):
             raise ValueError("step_into needs C-contiguous writable output arrays")
-        bits, pending, action = (np.asarray(x) for x in (bits, pending, action))
-        nq, nv, nu, ns = self.model.nq, self.model.nv, self.model.nu, self.nstate
-        values = self.with_pending(from_bits(bits).reshape(-1, self.width).copy(), pending.reshape(-1, nq + nv))
+        values, action, inputs = self.inputs_of(bits, pending, action)
         n = values.shape[0]
-        action = np.asarray(action, np.float32).reshape(n, nu)
-        inputs = np.empty((n, ns + nu))
-        inputs[:, :ns], inputs[:, ns:] = values[:, :ns], action  # ctrl as MjData holds it: float64 of the float32
         new = out_bits.reshape(n, self.width, 2).view(np.float64)[..., 0]  # float64 [n, width], in place
         cfrc = np.empty((n, self.model.nbody, 6)) if self.task.contact_forces else None
         self.advance(n, inputs, new, cfrc)
