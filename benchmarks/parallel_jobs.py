@@ -1,0 +1,105 @@
+"""Two training jobs on a 2-core CPU: how to place them. One update program (the library's SAC update of three
+experts, as the expert trainer runs it; or MOIQ's) timed in three layouts, in one run:
+
+1. one job with every core (JAX's default threading);
+2. two jobs at once, both with default threading, sharing the cores;
+3. two jobs at once, each pinned to its own core (``taskset``) with XLA's CPU threading off
+   (``XLA_FLAGS=--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1``).
+
+    python benchmarks/parallel_jobs.py [--algorithm sac] [--hidden 256] [--batch 256] [--updates 20] [--repeats 5]
+
+Each job is a child process that compiles its program, waits until every job of its layout has compiled, then
+times ``--repeats`` programs of ``--updates`` updates; the mean counts (the jobs run at the same time throughout,
+so a best-of would favour moments when the other job idles). Printed per layout: ms per update of each job and
+the updates per second of all jobs together, against layout 1. Run it on quiet cores.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import pathlib
+import subprocess
+import sys
+import tempfile
+import time
+
+SINGLE_THREAD = "--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1"
+
+
+def child(args) -> None:
+    """One job: compile, meet the other jobs at the barrier, time, print one JSON line."""
+    import jax
+    import update_speed
+
+    case = update_speed.ours(args.algorithm, args.experts, args.hidden, args.batch, args.updates, True)
+    key = jax.random.PRNGKey(2)
+    jax.block_until_ready(case.program(case.state, key))  # warm
+    barrier = pathlib.Path(args.barrier)
+    (barrier / f"ready{args.index}").touch()
+    while len(list(barrier.glob("ready*"))) < args.jobs:
+        time.sleep(0.01)
+    seconds = []
+    for _ in range(args.repeats):
+        start = time.perf_counter()
+        jax.block_until_ready(case.program(case.state, key))
+        seconds.append(time.perf_counter() - start)
+    print(json.dumps({"ms_per_update": 1e3 * sum(seconds) / len(seconds) / args.updates}), flush=True)
+
+
+def layout(args, jobs: int, pinned: bool) -> list[float]:
+    """ms per update of each of ``jobs`` concurrent child jobs."""
+    with tempfile.TemporaryDirectory() as barrier:
+        processes = []
+        for index in range(jobs):
+            env = dict(os.environ)
+            command = [sys.executable, __file__, "--child", "--barrier", barrier, "--index", str(index),
+                       "--jobs", str(jobs), "--algorithm", args.algorithm, "--experts", str(args.experts),
+                       "--hidden", str(args.hidden), "--batch", str(args.batch), "--updates", str(args.updates),
+                       "--repeats", str(args.repeats)]
+            if pinned:
+                env["XLA_FLAGS"] = f"{env.get('XLA_FLAGS', '')} {SINGLE_THREAD}".strip()
+                command = ["taskset", "-c", str(index % os.cpu_count()), *command]
+            processes.append(subprocess.Popen(command, env=env, stdout=subprocess.PIPE, text=True))
+        outputs = [p.communicate()[0] for p in processes]
+        if any(p.returncode for p in processes):
+            raise SystemExit(f"a job failed: {outputs}")
+    return [json.loads(out.strip().splitlines()[-1])["ms_per_update"] for out in outputs]
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--algorithm", default="sac", choices=("sac", "moiq", "iq"))
+    parser.add_argument("--experts", type=int, default=3)
+    parser.add_argument("--hidden", type=int, default=256)
+    parser.add_argument("--batch", type=int, default=256)
+    parser.add_argument("--updates", type=int, default=20, help="updates per timed program")
+    parser.add_argument("--repeats", type=int, default=5, help="timed programs per job; the mean counts")
+    parser.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
+    parser.add_argument("--barrier", help=argparse.SUPPRESS)
+    parser.add_argument("--index", type=int, default=0, help=argparse.SUPPRESS)
+    parser.add_argument("--jobs", type=int, default=1, help=argparse.SUPPRESS)
+    args = parser.parse_args()
+    if args.child:
+        return child(args)
+    cores = os.cpu_count()
+    if cores != 2:
+        print(f"note: this machine has {cores} cores; layouts 2 and 3 still run two jobs")
+    print(f"{cores} cores; load average at start {' '.join(f'{x:.1f}' for x in os.getloadavg())}; "
+          f"{args.algorithm} x{args.experts}, hidden {args.hidden}x{args.hidden}, batch {args.batch}; "
+          f"{args.updates} updates per program, mean of {args.repeats}")
+    print(f"{'layout':<40}{'ms/update per job':>22}{'updates/s, all jobs':>22}{'vs one job':>12}")
+    base = None
+    for name, jobs, pinned in (("one job, all cores", 1, False), ("two jobs, shared cores", 2, False),
+                               ("two jobs, one core each, single-thread", 2, True)):
+        ms = layout(args, jobs, pinned)
+        rate = sum(1e3 / m for m in ms)
+        base = base or rate
+        print(f"{name:<40}{' / '.join(f'{m:.2f}' for m in ms):>22}{rate:>22.1f}{rate / base:>11.2f}x", flush=True)
+    print(f"load average at end {' '.join(f'{x:.1f}' for x in os.getloadavg())}")
+
+
+if __name__ == "__main__":
+    sys.path.insert(0, str(pathlib.Path(__file__).parent))
+    main()
