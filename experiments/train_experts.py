@@ -3,7 +3,7 @@ of each (paper sec. 5.1), compared with the paper's expert returns (its Table 1)
 
     PYTHONPATH=. python experiments/train_experts.py --env mo-hopper [--total-steps N] [--num-envs 128]
         [--updates-per-step 64] [--time-limit SECONDS] [--run-dir DIR [--resume]] [--no-demos]
-        [--out experiments/demos]
+        [--out experiments/demos] [--cpu-cores 0]
     PYTHONPATH=. python experiments/train_experts.py --env mo-hopper --record   (demos from saved experts)
 
 Training writes, after every evaluation, ``<out>/<env>-experts.npz`` (the best evaluated actor of each
@@ -30,6 +30,7 @@ import numpy as np
 
 import moiq_jax
 from moiq_jax.experts import sac
+from moiq_jax.runtime import pin_to_cores
 
 
 def train(args, out: pathlib.Path) -> None:
@@ -102,7 +103,14 @@ def main() -> None:
     parser.add_argument("--no-demos", action="store_true", help="train only; record later with --record")
     parser.add_argument("--record", action="store_true", help="record demonstrations from saved experts only")
     parser.add_argument("--out", default="experiments/demos")
+    parser.add_argument("--cpu-cores", type=int, nargs="+",
+                        help="run on these CPU cores only (one: XLA single-threaded; runtime.pin_to_cores)")
     args = parser.parse_args()
+    if args.cpu_cores:
+        try:
+            pin_to_cores(args.cpu_cores)
+        except ValueError as error:
+            parser.error(str(error))
     if args.resume and not args.run_dir:
         parser.error("--resume needs the --run-dir of the run to continue")
     out = pathlib.Path(args.out)

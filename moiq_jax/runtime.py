@@ -22,6 +22,31 @@ def split_cpu_into_devices(count: int | None = None) -> None:
         os.environ["XLA_FLAGS"] = f"{flags} {flag}={count or os.cpu_count() or 1}".strip()
 
 
+SINGLE_THREAD_FLAGS = ("--xla_cpu_multi_thread_eigen=false", "intra_op_parallelism_threads=1")
+
+
+def pin_to_cores(cores) -> None:
+    """Run this process on the CPU cores ``cores`` only; on a single core, also turn XLA's CPU threading
+    off. Two training jobs on a 2-core machine, one per core, then do more updates per second together than
+    one job with both cores or two jobs sharing them (``benchmarks/parallel_jobs.py`` measures the three).
+
+    The XLA flags take effect only before JAX's first computation in the process (a ``ValueError`` says so
+    after it); the MuJoCo backend's default thread count follows the pinned cores."""
+    from jax._src import xla_bridge
+
+    cores = sorted({int(core) for core in cores})
+    available = sorted(os.sched_getaffinity(0))
+    if not cores or any(core not in available for core in cores):
+        raise ValueError(f"cores {cores} are not all among the cores this process may use: {available}")
+    if len(cores) == 1 and xla_bridge.backends_are_initialized():
+        raise ValueError("pin_to_cores must run before JAX's first computation (its XLA flags are read then)")
+    os.sched_setaffinity(0, cores)
+    if len(cores) == 1:
+        flags = os.environ.get("XLA_FLAGS", "").split()
+        missing = [flag for flag in SINGLE_THREAD_FLAGS if flag.split("=")[0] not in " ".join(flags)]
+        os.environ["XLA_FLAGS"] = " ".join([*flags, *missing])
+
+
 def use_compilation_cache(path: str | None = None) -> str | None:
     """Keep compiled programs on disk (JAX's persistent compilation cache), so that the same program run
     again, in this process or a later one, is loaded instead of compiled (a cdst ``train``: about 11 s to

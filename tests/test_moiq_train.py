@@ -12,6 +12,7 @@ import pytest
 import moiq_jax
 from moiq_jax.algos.offpolicy import make_trainer
 from moiq_jax.experts.loading import load_demonstrations
+from moiq_jax.runtime import pin_to_cores
 from moiq_jax.train import ALGORITHMS, validate
 
 TINY = moiq_jax.Config(total_steps=40, eval_interval=20, num_envs=2, learning_starts=10, batch_size=8,
@@ -143,6 +144,30 @@ def test_sweep_sharded_over_two_host_devices_matches(swept):
     assert out.returncode == 0, out.stderr[-2000:]
     sharded = np.array(eval(out.stdout.strip().splitlines()[-1]))
     np.testing.assert_allclose(sharded, swept.history["critic_loss"], rtol=1e-4, atol=1e-5)
+
+
+def test_a_run_pinned_to_one_core_single_threaded_matches(swept):
+    script = (
+        "import os, jax, moiq_jax; from moiq_jax import Config; from moiq_jax.runtime import pin_to_cores; "
+        "from moiq_jax.envs.mujoco.native import default_threads; "
+        "pin_to_cores([0]); assert os.sched_getaffinity(0) == {0} and default_threads() == 1; "
+        "assert 'intra_op_parallelism_threads=1' in os.environ['XLA_FLAGS']; "
+        f"s = moiq_jax.sweep(Config(**{TINY.to_dict()!r}), beta=[0.0, 5.0], seed=[3]); "
+        "print(s.history['critic_loss'].tolist())"
+    )
+    env = {**{k: v for k, v in os.environ.items() if k != "XLA_FLAGS"}, "PYTHONPATH": os.getcwd()}
+    out = subprocess.run([sys.executable, "-c", script], check=False, env=env, capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr[-2000:]
+    pinned = np.array(eval(out.stdout.strip().splitlines()[-1]))
+    np.testing.assert_allclose(pinned, swept.history["critic_loss"], rtol=1e-4, atol=1e-5)
+
+
+def test_pin_to_cores_refuses_cores_it_cannot_use_and_a_started_jax():
+    with pytest.raises(ValueError, match="not all among the cores this process may use"):
+        pin_to_cores([10_000])
+    jax.numpy.zeros(1).block_until_ready()
+    with pytest.raises(ValueError, match="before JAX's first computation"):
+        pin_to_cores([min(os.sched_getaffinity(0))])
 
 
 def test_num_demos_takes_the_first_episodes_of_a_demos_file(tmp_path):
