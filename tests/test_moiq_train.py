@@ -131,34 +131,31 @@ def test_sweep_rejects_values_the_algorithm_does_not_have(demos):
         moiq_jax.sweep(TINY.replace(algo="iq_learn"), beta=[0.0, 5.0], demos=demos)
 
 
-def test_sweep_sharded_over_two_host_devices_matches(swept):
-    script = (
-        "import jax, moiq_jax; from moiq_jax import Config; from moiq_jax.runtime import split_cpu_into_devices; "
-        "split_cpu_into_devices(2); assert jax.device_count() == 2; "
-        f"s = moiq_jax.sweep(Config(**{TINY.to_dict()!r}), beta=[0.0, 5.0], seed=[3]); "
-        "assert len(jax.tree_util.tree_leaves(s.best_params)[0].sharding.device_set) == 2; "
-        "print(s.history['critic_loss'].tolist())"
-    )
+def _sweep_in_a_fresh_process(setup: str, check: str = "") -> np.ndarray:
+    """The critic losses of ``swept``'s sweep, run in a new Python process after ``setup`` (which configures JAX
+    before its first computation), with the assertions ``check`` on the sweep ``s``."""
+    script = "; ".join(filter(None, [
+        "import os, jax, moiq_jax; from moiq_jax import Config", setup,
+        f"s = moiq_jax.sweep(Config(**{TINY.to_dict()!r}), beta=[0.0, 5.0], seed=[3])", check,
+        "print(s.history['critic_loss'].tolist())"]))
     env = {**{k: v for k, v in os.environ.items() if k != "XLA_FLAGS"}, "PYTHONPATH": os.getcwd()}
     out = subprocess.run([sys.executable, "-c", script], check=False, env=env, capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stderr[-2000:]
-    sharded = np.array(eval(out.stdout.strip().splitlines()[-1]))
+    return np.array(eval(out.stdout.strip().splitlines()[-1]))
+
+
+def test_sweep_sharded_over_two_host_devices_matches(swept):
+    sharded = _sweep_in_a_fresh_process(
+        "from moiq_jax.runtime import split_cpu_into_devices; split_cpu_into_devices(2); assert jax.device_count() == 2",
+        "assert len(jax.tree_util.tree_leaves(s.best_params)[0].sharding.device_set) == 2")
     np.testing.assert_allclose(sharded, swept.history["critic_loss"], rtol=1e-4, atol=1e-5)
 
 
 def test_a_run_pinned_to_one_core_single_threaded_matches(swept):
-    script = (
-        "import os, jax, moiq_jax; from moiq_jax import Config; from moiq_jax.runtime import pin_to_cores; "
-        "from moiq_jax.envs.mujoco.native import default_threads; "
+    pinned = _sweep_in_a_fresh_process(
+        "from moiq_jax.runtime import pin_to_cores; from moiq_jax.envs.mujoco.native import default_threads; "
         "pin_to_cores([0]); assert os.sched_getaffinity(0) == {0} and default_threads() == 1; "
-        "assert 'intra_op_parallelism_threads=1' in os.environ['XLA_FLAGS']; "
-        f"s = moiq_jax.sweep(Config(**{TINY.to_dict()!r}), beta=[0.0, 5.0], seed=[3]); "
-        "print(s.history['critic_loss'].tolist())"
-    )
-    env = {**{k: v for k, v in os.environ.items() if k != "XLA_FLAGS"}, "PYTHONPATH": os.getcwd()}
-    out = subprocess.run([sys.executable, "-c", script], check=False, env=env, capture_output=True, text=True, timeout=300)
-    assert out.returncode == 0, out.stderr[-2000:]
-    pinned = np.array(eval(out.stdout.strip().splitlines()[-1]))
+        "assert 'intra_op_parallelism_threads=1' in os.environ['XLA_FLAGS']")
     np.testing.assert_allclose(pinned, swept.history["critic_loss"], rtol=1e-4, atol=1e-5)
 
 
