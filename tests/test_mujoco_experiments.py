@@ -254,9 +254,9 @@ def test_figure2_shares_gail_runs_only_between_protocols_that_configure_gail_ali
 
 
 def test_train_runs_trains_any_scripts_sweep_in_parts(outputs):
-    """train_runs.py trains the runs of any script's sweep (here Figure 4's IQ-Learn) that the archive lacks, which
-    the script then reads without training; the script's --no-train error names that command; a beta for a sweep
-    without one is refused."""
+    """train_runs.py trains the runs of any script's sweep (here Figure 4's IQ-Learn, pinned to one core) that the
+    archive lacks, which the script then reads without training; the script's --no-train error names that
+    command; a beta for a sweep without one, and a core the process may not use, are refused."""
     tmp_path, _ = outputs
     archive = tmp_path / "archive-parts"
     shutil.copytree(tmp_path / "cache" / "quick" / "runs", archive)
@@ -274,7 +274,9 @@ def test_train_runs_trains_any_scripts_sweep_in_parts(outputs):
 
     refused = train_runs("--sweep", "gail", "--betas", "5")
     assert refused.returncode == 2 and "the gail sweep has no beta" in refused.stderr
-    trained = train_runs("--sweep", "iq_learn-1demo", "--seed-list", "0", "1")
+    refused = train_runs("--cpu-cores", "100000")
+    assert refused.returncode == 2 and "cores [100000] are not all among the cores this process may use" in refused.stderr
+    trained = train_runs("--sweep", "iq_learn-1demo", "--seed-list", "0", "1", "--cpu-cores", "0")
     assert trained.returncode == 0, trained.stderr[-3000:]
     assert "trained iq_learn-1demo (quick protocol) seed1 (" in trained.stdout and "1 runs trained" in trained.stdout
     record = json.loads((archive / "mo-halfcheetah-iq_learn-1demo" / "seed1" / "result.json").read_text())
