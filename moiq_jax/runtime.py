@@ -34,6 +34,8 @@ def pin_to_cores(cores) -> None:
     after it); the MuJoCo backend's default thread count follows the pinned cores."""
     from jax._src import xla_bridge
 
+    if not hasattr(os, "sched_setaffinity"):
+        raise ValueError("pinning a process to cores needs os.sched_setaffinity (Linux); use the OS's own tool")
     cores = sorted({int(core) for core in cores})
     available = sorted(os.sched_getaffinity(0))
     if not cores or any(core not in available for core in cores):
