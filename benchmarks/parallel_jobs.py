@@ -3,8 +3,8 @@ experts, as the expert trainer runs it; or MOIQ's) timed in three layouts, in on
 
 1. one job with every core (JAX's default threading);
 2. two jobs at once, both with default threading, sharing the cores;
-3. two jobs at once, each pinned to its own core (``taskset``) with XLA's CPU threading off
-   (``XLA_FLAGS=--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1``).
+3. two jobs at once, each pinned to its own core with XLA's CPU threading off (``runtime.pin_to_cores``, as
+   ``--cpu-cores`` of the training scripts does).
 
     python benchmarks/parallel_jobs.py [--algorithm sac] [--hidden 256] [--batch 256] [--updates 20] [--repeats 5]
         [--against peer peervec]
@@ -29,11 +29,13 @@ import sys
 import tempfile
 import time
 
-SINGLE_THREAD = "--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1"
-
 
 def child(args) -> None:
-    """One job: compile, meet the other jobs at the barrier, time, print one JSON line."""
+    """One job: (pinned to its core,) compile, meet the other jobs at the barrier, time, print one JSON line."""
+    if args.core is not None:
+        from moiq_jax.runtime import pin_to_cores
+
+        pin_to_cores([args.core])
     import jax
     import update_speed
 
@@ -58,19 +60,17 @@ def child(args) -> None:
 
 def layout(args, programs: list[str], pinned: bool) -> list[float]:
     """ms per update of each of ``programs``, run as concurrent child jobs."""
-    jobs = len(programs)
+    jobs, cores = len(programs), sorted(os.sched_getaffinity(0))
     with tempfile.TemporaryDirectory() as barrier:
         processes = []
         for index, program in enumerate(programs):
-            env = dict(os.environ)
             command = [sys.executable, __file__, "--child", "--barrier", barrier, "--index", str(index),
                        "--jobs", str(jobs), "--program", program, "--experts", str(args.experts),
                        "--hidden", str(args.hidden), "--batch", str(args.batch), "--updates", str(args.updates),
                        "--repeats", str(args.repeats)]
             if pinned:
-                env["XLA_FLAGS"] = f"{env.get('XLA_FLAGS', '')} {SINGLE_THREAD}".strip()
-                command = ["taskset", "-c", str(index % os.cpu_count()), *command]
-            processes.append(subprocess.Popen(command, env=env, stdout=subprocess.PIPE, text=True))
+                command += ["--core", str(cores[index % len(cores)])]
+            processes.append(subprocess.Popen(command, stdout=subprocess.PIPE, text=True))
         outputs = [p.communicate()[0] for p in processes]
         if any(p.returncode for p in processes):
             raise SystemExit(f"a job failed: {outputs}")
@@ -92,9 +92,12 @@ def main() -> None:
     parser.add_argument("--barrier", help=argparse.SUPPRESS)
     parser.add_argument("--index", type=int, default=0, help=argparse.SUPPRESS)
     parser.add_argument("--jobs", type=int, default=1, help=argparse.SUPPRESS)
+    parser.add_argument("--core", type=int, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.child:
         return child(args)
+    if args.against and args.algorithm != "sac":
+        parser.error("--against compares the SAC update only")
     cores = os.cpu_count()
     if cores != 2:
         print(f"note: this machine has {cores} cores; layouts 2 and 3 still run two jobs")
@@ -103,8 +106,6 @@ def main() -> None:
           f"{args.updates} updates per program, mean of {args.repeats}")
     print(f"{'layout':<40}{'ms/update per job':>22}{'updates/s, all jobs':>22}{'vs one job':>12}")
     base = None
-    if args.against and args.algorithm != "sac":
-        parser.error("--against compares the SAC update only")
     one = [args.algorithm]
     for name, programs, pinned in (("one job, all cores", one, False), ("two jobs, shared cores", one * 2, False),
                                    ("two jobs, one core each, single-thread", one * 2, True)):
