@@ -2,8 +2,8 @@
 of each (paper sec. 5.1), compared with the paper's expert returns (its Table 1).
 
     PYTHONPATH=. python experiments/train_experts.py --env mo-hopper [--total-steps N] [--num-envs 128]
-        [--updates-per-step 64] [--time-limit SECONDS] [--run-dir DIR [--resume]] [--no-demos]
-        [--out experiments/demos] [--cpu-cores 0]
+        [--updates-per-step 64] [--adopt-margin 0.1] [--time-limit SECONDS] [--run-dir DIR [--resume]]
+        [--no-demos] [--out experiments/demos] [--cpu-cores 0]
     PYTHONPATH=. python experiments/train_experts.py --env mo-hopper --record   (demos from saved experts)
 
 Training writes, after every evaluation, ``<out>/<env>-experts.npz`` (the best evaluated actor of each
@@ -35,7 +35,8 @@ from moiq_jax.runtime import pin_to_cores
 
 def train(args, out: pathlib.Path) -> None:
     changes = {name: getattr(args, name) for name in ("total_steps", "eval_interval", "learning_starts", "num_envs",
-                                                      "updates_per_step", "seed") if getattr(args, name) is not None}
+                                                      "updates_per_step", "seed", "adopt_margin")
+               if getattr(args, name) is not None}
     config = sac.expert_config(args.env, **changes)
     config = config.replace(buffer_size=min(config.offpolicy.buffer_size, config.offpolicy.total_steps))
     device = jax.devices()[0]
@@ -54,9 +55,13 @@ def train(args, out: pathlib.Path) -> None:
                   "cpu_seconds": round(cpu_before + time.process_time() - cpu_start, 1),
                   "env_steps_per_expert": steps,
                   "config": config.to_dict(),
-                  "history": {k: [np.asarray(h[k], np.float64).round(3).tolist() for h in history]
-                              for k in ("env_steps", "eval_scalar_return", "eval_return", "alpha")}}
+                  "history": {k: [np.asarray(h[k], np.float64).round(3).tolist() if k in h else None for h in history]
+                              for k in ("env_steps", "eval_scalar_return", "eval_return", "alpha", "adopted_from")}}
         training.write_text(json.dumps(record, indent=1))
+        for expert, donor in enumerate(np.asarray(history[-1].get("adopted_from", [])).tolist()):
+            if donor >= 0:
+                print(f"  expert {config.preferences[expert]} continues from expert {config.preferences[donor]}'s "
+                      "learner and replay", flush=True)
         print(f"  saved the best experts after {steps:,} env steps each ({record['seconds']:.0f}s wall, "
               f"{record['cpu_seconds']:.0f}s CPU)", flush=True)
 
@@ -96,6 +101,9 @@ def main() -> None:
     parser.add_argument("--num-envs", type=int, help="parallel envs per expert")
     parser.add_argument("--updates-per-step", type=int, help="gradient updates per vectorised env step")
     parser.add_argument("--seed", type=int)
+    parser.add_argument("--adopt-margin", type=float,
+                        help="an expert another beats under its preference by more than this fraction continues from "
+                             "that one's learner (offpolicy.adopt_between_preferences; default: never)")
     parser.add_argument("--num-demos", type=int, default=10)
     parser.add_argument("--time-limit", type=float, help="stop after the first evaluation past this many seconds")
     parser.add_argument("--run-dir", help="checkpoint the training state here after every evaluation")

@@ -10,7 +10,7 @@ import time
 
 import numpy as np
 
-from moiq_jax.config import Config, field_help, tuned
+from moiq_jax.config import Config, field_help, field_types, tuned
 
 FIELDS = Config().to_dict()  # every field's flat name (its flag) and default
 
@@ -85,7 +85,7 @@ def add_config_flags(parser: argparse.ArgumentParser, repeated: tuple[str, ...] 
 
     Flags default to None so that only the ones given override the file's or Config's values."""
     parser.add_argument("--config", metavar="FILE", help="a JSON or YAML file of Config fields; flags override it")
-    helps = field_help()
+    helps, types = field_help(), field_types()
     for name, default in FIELDS.items():
         flag = "--" + name.replace("_", "-")
         text = f"{helps[name]} (default: {default})"
@@ -100,6 +100,8 @@ def add_config_flags(parser: argparse.ArgumentParser, repeated: tuple[str, ...] 
             parser.add_argument(flag, nargs="+", type=int, default=None, help=text)
         elif isinstance(default, (int, float)):
             parser.add_argument(flag, type=type(default), default=None, help=text)
+        elif default is None and types[name].startswith("float"):
+            parser.add_argument(flag, type=float, default=None, help=text)
         else:
             parser.add_argument(flag, type=str, default=None, help=text)
 

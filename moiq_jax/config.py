@@ -48,6 +48,10 @@ class OffPolicyConfig:
     learn_alpha: bool = _field(True, "learn the entropy temperature (SAC's loss); else keep init_alpha")
     eval_interval: int = _field(5_000, "env steps per expert between evaluations (and best-model checks)")
     eval_episodes: int = _field(1, "episodes per evaluation (cdst and its experts are deterministic: one suffices)")
+    adopt_margin: float | None = _field(
+        None, "sac's experts (one model per preference): after each evaluation, a model that another beats under its own "
+              "preference by more than this fraction of its return continues from that model's learner and replay "
+              "(offpolicy.adopt_between_preferences); None: never")
     absorbing_rollouts: bool = _field(
         True, "learners from demonstrations: after a termination, rollouts go on in the absorbing state to the time "
               "limit (its reward learnt; paper sec. 4.1.1); else the episode ends there, V(s') = 0 (IQ-Learn's code)")
@@ -64,6 +68,8 @@ class OffPolicyConfig:
             raise ValueError(f"hidden_sizes must be positive layer widths, got {self.hidden_sizes}")
         if not 0.0 < self.tau <= 1.0:
             raise ValueError(f"tau must be in (0, 1], got {self.tau}")
+        if self.adopt_margin is not None and not self.adopt_margin >= 0.0:
+            raise ValueError(f"adopt_margin must be >= 0 (or None: never adopt), got {self.adopt_margin}")
         if self.learning_starts < 0:
             raise ValueError(f"learning_starts must be non-negative, got {self.learning_starts}")
         for name in ("total_steps", "eval_interval"):
@@ -293,11 +299,20 @@ def _replace_in(section, path, name, value):
     return dataclasses.replace(section, **{path[0]: _replace_in(inner, path[1:], name, value)})
 
 
+def _all_fields() -> dict[str, dataclasses.Field]:
+    """Every field (common and sectioned) by its flat name."""
+    return {**{f.name: f for f in dataclasses.fields(Config) if f.name not in SECTIONS},
+            **{name: f for name, (_, f) in _flat_fields().items()}}
+
+
 def field_help() -> dict[str, str]:
     """Each field's flat name -> its help text."""
-    helps = {f.name: f.metadata.get("help", "") for f in dataclasses.fields(Config) if f.name not in SECTIONS}
-    helps.update({name: f.metadata.get("help", "") for name, (_, f) in _flat_fields().items()})
-    return helps
+    return {name: f.metadata.get("help", "") for name, f in _all_fields().items()}
+
+
+def field_types() -> dict[str, str]:
+    """Each field's flat name -> its annotation as written (e.g. ``"float | None"``), for the CLI's parsers."""
+    return {name: str(f.type) for name, f in _all_fields().items()}
 
 
 # Settings tuned per env over the (paper-sized) defaults; the evidence for each is in the results READMEs

@@ -11,7 +11,7 @@ from typing import Any, NamedTuple
 import flax.linen as nn
 import jax
 import jax.numpy as jnp
-from flax import struct
+from flax import struct, traverse_util
 
 LOG_STD_MIN, LOG_STD_MAX = -5.0, 2.0
 
@@ -155,6 +155,18 @@ def _dense_layers(module_params) -> dict:
     while "Dense_0" not in mlp:  # {"params": {"MLP_0": {...}}}, or with the critics' vmap level between
         (mlp,) = mlp.values()
     return mlp
+
+
+def preference_input_moved(module_params, old, new):
+    """An actor's or critics' parameters that, fed the preference ``new``, compute what ``module_params``
+    computed fed ``old``: the first layer's bias absorbs ``(old - new) @ W_w``, ``W_w`` the kernel's rows of
+    the preference (the input's last ones). For a model trained on one preference, whose preference input
+    is a constant, taken over for another preference (``offpolicy.adopt_between_preferences``)."""
+    flat = traverse_util.flatten_dict(module_params)
+    for path in [p for p in flat if p[-2:] == ("Dense_0", "bias")]:
+        kernel = flat[path[:-1] + ("kernel",)]
+        flat[path] = flat[path] + jnp.einsum("d,...dh->...h", old - new, kernel[..., -old.shape[-1]:, :])
+    return traverse_util.unflatten_dict(flat)
 
 
 def networks_of_sizes(hidden_sizes, reward_dim: int, action_size: int, action_scale: float = 1.0,

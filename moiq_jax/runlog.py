@@ -70,8 +70,16 @@ class RunLog:
                 open(self.csv_path, "w").close()
             return
         new = mode == "w" or not os.path.exists(self.csv_path) or os.path.getsize(self.csv_path) == 0
+        fields = list(rows[0])
+        if not new:
+            with open(self.csv_path, newline="") as f:
+                written = csv.DictReader(f)
+                header, earlier = list(written.fieldnames or []), list(written)
+            if header != fields:  # a resumed run that logs other metrics: one header over all rows, gaps empty
+                fields = header + [name for name in fields if name not in header]
+                rows, mode, new = earlier + rows, "w", True
         with open(self.csv_path, mode, newline="") as f:
-            writer = csv.DictWriter(f, fieldnames=list(rows[0]))
+            writer = csv.DictWriter(f, fieldnames=fields, restval="")
             if new:
                 writer.writeheader()
             writer.writerows(rows)

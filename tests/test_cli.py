@@ -1,5 +1,6 @@
 """The `moiq` console script, run as a real subprocess."""
 
+import json
 import shutil
 import subprocess
 
@@ -156,8 +157,10 @@ def test_train_sac_experts_then_record_their_demonstrations(tmp_path):
     run_dir = tmp_path / "experts"
     out = moiq("train", "--algo", "sac", "--total-steps", "800", "--eval-interval", "400", "--learning-starts", "200",
                "--buffer-size", "800", "--hidden-sizes", "8", "8", "--batch-size", "8", "--run-dir", str(run_dir),
-               "--no-progress")
+               "--adopt-margin", "0.25", "--no-progress")
     assert out.returncode == 0, out.stderr
+    assert json.loads((run_dir / "config.json").read_text())["adopt_margin"] == 0.25
+    assert "adopted_from" in (run_dir / "metrics.csv").read_text().splitlines()[0]
     assert "[0.1, 0.9]" in out.stdout and f"moiq demos --experts {run_dir / 'experts.npz'}" in out.stdout
     demos = moiq("demos", "--experts", str(run_dir / "experts.npz"), "--num-demos", "2", "--out", str(tmp_path / "d.npz"))
     assert demos.returncode == 0, demos.stderr

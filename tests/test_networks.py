@@ -9,6 +9,7 @@ from moiq_jax.networks import (
     networks_for,
     networks_of_config,
     networks_of_sizes,
+    preference_input_moved,
     sample_tanh_gaussian,
     tanh_gaussian_log_prob,
 )
@@ -51,6 +52,25 @@ def test_actor_conditions_on_preference():
     mean_a, _ = actor.apply(params, obs, jnp.tile(jnp.array([0.9, 0.1]), (4, 1)))
     mean_b, _ = actor.apply(params, obs, jnp.tile(jnp.array([0.1, 0.9]), (4, 1)))
     assert mean_a.shape == (4, 2) and not np.allclose(mean_a, mean_b)
+
+
+def test_moved_preference_input_computes_the_same_outputs_fed_the_new_preference():
+    nets = networks_of_sizes((8, 8), reward_dim=3, action_size=2)
+    obs, action = jax.random.normal(jax.random.PRNGKey(0), (5, 4)), jax.random.uniform(jax.random.PRNGKey(1), (5, 2))
+    old, new = jnp.array([0.8, 0.1, 0.1]), jnp.array([0.1, 0.1, 0.8])
+    tile = lambda w: jnp.tile(w, (5, 1))
+    actor = nets.actor.init(jax.random.PRNGKey(2), obs, tile(old))
+    critics = nets.critic.init(jax.random.PRNGKey(3), obs, action, tile(old))
+    moved_actor, moved_critics = preference_input_moved(actor, old, new), preference_input_moved(critics, old, new)
+    for before, after in zip(nets.actor.apply(actor, obs, tile(old)), nets.actor.apply(moved_actor, obs, tile(new))):
+        np.testing.assert_allclose(after, before, rtol=1e-5, atol=1e-6)
+    np.testing.assert_allclose(nets.critic.apply(moved_critics, obs, action, tile(new)),
+                               nets.critic.apply(critics, obs, action, tile(old)), rtol=1e-5, atol=1e-6)
+    # Only the first layer's bias moves, and by the preference rows of its kernel.
+    changed = [a is not b and not np.array_equal(a, b) for a, b in zip(jax.tree_util.tree_leaves(critics),
+                                                                       jax.tree_util.tree_leaves(moved_critics))]
+    assert sum(changed) == 1
+    assert not np.allclose(nets.actor.apply(actor, obs, tile(new))[0], nets.actor.apply(actor, obs, tile(old))[0])
 
 
 def test_tanh_gaussian_density_integrates_to_one_and_matches_naive_formula():

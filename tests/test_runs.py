@@ -73,6 +73,14 @@ def test_run_log_writes_config_csv_and_tensorboard_and_resumes_cleanly(tmp_path)
     rows = read_rows(tmp_path / "metrics.csv")
     assert [r["env_steps"] for r in rows] == ["10", "10", "20", "20", "30", "30"]
     assert rows[-1]["loss"] == "99.0"
+    # A resumed run that logs a new metric: one header over all rows, the earlier rows' cells empty.
+    run = RunLog(tmp_path, config, total_steps=40, resume_step=30, progress=False)
+    run.log(40, {**metrics, "adopted_from": np.array([-1, 0])})
+    run.close()
+    rows = read_rows(tmp_path / "metrics.csv")
+    assert [r["env_steps"] for r in rows] == ["10", "10", "20", "20", "30", "30", "40", "40"]
+    assert [r["adopted_from"] for r in rows] == [""] * 6 + ["-1.0", "0.0"]
+    assert rows[-1]["loss"] == "7.0" and rows[-1]["eval_vector_return_1"] == "-4.0"
 
 
 def read_rows(path):
@@ -96,6 +104,7 @@ def test_flags_set_config_fields_and_override_a_config_file(tmp_path):
     assert parse("--config", str(tmp_path / "run.json")).moiq.beta == 0.0
     cfg = parse("--env-backend", "mujoco", "--ppo-iterations", "3")
     assert cfg.env_backend == "mujoco" and cfg.admm.ppo.iterations == 3
+    assert parse("--adopt-margin", "0.1").offpolicy.adopt_margin == 0.1 and parse().offpolicy.adopt_margin is None
 
 
 def test_bad_config_files_name_the_problem(tmp_path):

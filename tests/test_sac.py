@@ -8,11 +8,11 @@ import optax
 import pytest
 
 import moiq_jax
-from moiq_jax.algos import actor_critic, sac
+from moiq_jax.algos import actor_critic, offpolicy, sac
 from moiq_jax.config import tuned
 from moiq_jax.experts import sac as sac_experts
 from moiq_jax.experts.cdst_oracle import expert_returns
-from moiq_jax.networks import networks_of_sizes
+from moiq_jax.networks import networks_of_config, networks_of_sizes
 
 NETS = networks_of_sizes((16, 16), reward_dim=2, action_size=2)
 PREFS = jnp.array([[0.9, 0.1], [0.2, 0.8]])
@@ -105,3 +105,70 @@ def test_load_experts_rejects_other_files(tmp_path):
     np.savez(tmp_path / "other.npz", x=np.zeros(3))
     with pytest.raises(ValueError, match="not an expert file"):
         sac_experts.load_experts(tmp_path / "other.npz")
+
+
+def _marked_runner_state(prefs):
+    """A fresh per-preference SAC runner state for cdst whose replay buffers hold their model's index."""
+    config = tuned("cdst", algo="sac", hidden_sizes=(16, 16), buffer_size=64, total_steps=400, eval_interval=200,
+                   learning_starts=100)
+    trainer = offpolicy.make_trainer(config, sac.ALGORITHM)
+    state = trainer.init(jax.random.PRNGKey(0), trainer.make_setup(prefs))
+    marked = jax.tree_util.tree_map(lambda x: x + jnp.arange(3).reshape(-1, *[1] * (x.ndim - 1)).astype(x.dtype),
+                                    state.buffers)
+    env = config.make_env()
+    return state.replace(buffers=marked), networks_of_config(config.offpolicy, env), env.observation_size
+
+
+def test_a_model_another_serves_better_takes_over_its_learner_and_replay():
+    prefs = jnp.array([[0.9, 0.1], [0.5, 0.5], [0.1, 0.9]])
+    state, nets, obs_size = _marked_runner_state(prefs)
+    # Model 0 returns [2, 2]; model 1 [5, 5] scores 5 under model 0's preference, 2.5x model 0's own 2.
+    returns = jnp.array([[2.0, 2.0], [5.0, 5.0], [1.0, 9.0]])
+    adopted, donor = offpolicy.adopt_between_preferences(state, returns, prefs, margin=1.4)
+    assert donor.tolist() == [1, 1, 2]
+    obs = jax.random.normal(jax.random.PRNGKey(4), (6, obs_size))
+    action = jax.random.uniform(jax.random.PRNGKey(5), (6, 2), minval=-1, maxval=1)
+    at = lambda tree, i: jax.tree_util.tree_map(lambda x: x[i], tree)
+    before, after = state.learner.params, adopted.learner.params
+    # Fed its own preference, model 0 now acts and values as model 1 did fed model 1's.
+    np.testing.assert_allclose(nets.act(at(after.actor, 0), obs, prefs[0]), nets.act(at(before.actor, 1), obs, prefs[1]),
+                               atol=1e-5)
+    for critic in ("critic", "target_critic"):
+        np.testing.assert_allclose(
+            nets.critic.apply(at(getattr(after, critic), 0), obs, action, jnp.tile(prefs[0], (6, 1))),
+            nets.critic.apply(at(getattr(before, critic), 1), obs, action, jnp.tile(prefs[1], (6, 1))), atol=1e-5)
+    take = lambda tree, rows: jax.tree_util.tree_leaves(jax.tree_util.tree_map(lambda x: x[jnp.array(rows)], tree))
+    for new, old in zip(take((adopted.buffers, adopted.learner.actor_opt, adopted.learner.params.log_alpha), [0, 1, 2]),
+                        take((state.buffers, state.learner.actor_opt, state.learner.params.log_alpha), [1, 1, 2])):
+        np.testing.assert_array_equal(new, old)
+    for new, old in zip(take((adopted.learner, adopted.env_state, adopted.best_params), [1, 2]),
+                        take((state.learner, state.env_state, state.best_params), [1, 2])):
+        np.testing.assert_array_equal(new, old)  # the others are untouched
+    for new, old in zip(jax.tree_util.tree_leaves((adopted.env_state, adopted.best_params, adopted.key)),
+                        jax.tree_util.tree_leaves((state.env_state, state.best_params, state.key))):
+        np.testing.assert_array_equal(new, old)  # every model keeps its env states, best parameters and key
+    # Under the margin (3 more than 2 is not over 1.6 x 2), nothing is taken over.
+    kept, donor = offpolicy.adopt_between_preferences(state, returns, prefs, margin=1.6)
+    assert donor.tolist() == [0, 1, 2]
+    for new, old in zip(jax.tree_util.tree_leaves(kept), jax.tree_util.tree_leaves(state)):
+        np.testing.assert_array_equal(new, old)
+
+
+def test_adoption_runs_in_training_and_only_for_sac_experts():
+    config = tuned("cdst", algo="sac", total_steps=800, eval_interval=400, learning_starts=200, buffer_size=800,
+                   hidden_sizes=(8, 8), batch_size=8, adopt_margin=0.0,
+                   preferences=((0.1, 0.9), (0.9, 0.1), (0.5, 0.5)))  # not the loop's order: labels must follow
+    result = moiq_jax.train(config, log=None)
+    adopted = result.history["adopted_from"]
+    assert adopted.shape == (2, 3) and set(adopted.ravel().tolist()) <= {-1, 0, 1, 2}
+    assert all(a != i for row in adopted for i, a in enumerate(row))  # -1, or another expert (config order)
+    scores = result.history["eval_return"] @ np.asarray(config.preferences).T  # [chunk, model j, preference i]
+    for chunk in range(2):  # a model adopts exactly when another beats it under its preference (margin 0)
+        own = np.diagonal(scores[chunk])
+        np.testing.assert_array_equal(adopted[chunk] >= 0, scores[chunk].max(axis=0) > own)
+    with pytest.raises(ValueError, match="must not see that reward"):
+        moiq_jax.train(config.replace(algo="iq_learn"), log=None)
+    with pytest.raises(ValueError, match="must not see that reward"):
+        moiq_jax.train(config.replace(algo="moiq"), log=None)
+    with pytest.raises(ValueError, match="adopt_margin must be >= 0"):
+        moiq_jax.train(config.replace(adopt_margin=-0.5), log=None)
