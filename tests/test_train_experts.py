@@ -48,6 +48,17 @@ def test_cut_resumed_adopting_run_then_demonstrations(tmp_path):
     assert expected_lines  # at margin 0 some expert beats another under its preference in a smoke run
     assert [line for line in (first + resumed).splitlines() if "continues from" in line] == expected_lines
 
+    progress = subprocess.run([sys.executable, str(ROOT / "experiments" / "expert_progress.py"), str(tmp_path / "run")],
+                              capture_output=True, text=True, timeout=120, env={**os.environ, "PYTHONPATH": str(ROOT)},
+                              check=True).stdout
+    name = lambda w: "[" + ", ".join(f"{x:g}" for x in w) + "]"
+    for i, w in enumerate(labels):  # each expert's row of its own scores, as the training record has them
+        assert f"| {name(w)} | " + " | ".join(f"{s[i]:,.0f}" for s in history["eval_scalar_return"]) + " |" in progress
+    moves = [f"- after {int(steps[0]):,} steps: {name(labels[expert])} continued from {name(labels[int(donor)])}"
+             for steps, adopted in zip(history["env_steps"], history["adopted_from"])
+             for expert, donor in enumerate(adopted) if donor >= 0]
+    assert [line for line in progress.splitlines() if line.startswith("- after")] == moves
+
     recorded = train_experts("--record", "--num-demos", "2", "--out", str(tmp_path))
     demos = Demonstrations.load(tmp_path / "mo-hopper.npz")
     assert demos.obs.shape[:2] == (3, 2) and demos.env == "mo-hopper"
