@@ -103,7 +103,7 @@ def main() -> None:
     parser.add_argument("--seed", type=int)
     parser.add_argument("--adopt-margin", type=float,
                         help="an expert another beats under its preference by more than this fraction continues from "
-                             "that one's learner (offpolicy.adopt_between_preferences; default: never)")
+                             "that one's learner (moiq_jax.algos.adoption; default: never)")
     parser.add_argument("--num-demos", type=int, default=10)
     parser.add_argument("--time-limit", type=float, help="stop after the first evaluation past this many seconds")
     parser.add_argument("--run-dir", help="checkpoint the training state here after every evaluation")

@@ -51,7 +51,7 @@ class OffPolicyConfig:
     adopt_margin: float | None = _field(
         None, "sac's experts (one model per preference): after each evaluation, a model that another beats under its own "
               "preference by more than this fraction of its return continues from that model's learner and replay "
-              "(offpolicy.adopt_between_preferences); None: never")
+              "(algos/adoption.py); None: never")
     absorbing_rollouts: bool = _field(
         True, "learners from demonstrations: after a termination, rollouts go on in the absorbing state to the time "
               "limit (its reward learnt; paper sec. 4.1.1); else the episode ends there, V(s') = 0 (IQ-Learn's code)")

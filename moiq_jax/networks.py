@@ -161,7 +161,7 @@ def preference_input_moved(module_params, old, new):
     """An actor's or critics' parameters that, fed the preference ``new``, compute what ``module_params``
     computed fed ``old``: the first layer's bias absorbs ``(old - new) @ W_w``, ``W_w`` the kernel's rows of
     the preference (the input's last ones). For a model trained on one preference, whose preference input
-    is a constant, taken over for another preference (``offpolicy.adopt_between_preferences``)."""
+    is a constant, taken over for another preference (``algos.adoption``)."""
     flat = traverse_util.flatten_dict(module_params)
     for path in [p for p in flat if p[-2:] == ("Dense_0", "bias")]:
         kernel = flat[path[:-1] + ("kernel",)]

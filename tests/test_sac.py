@@ -9,6 +9,7 @@ import pytest
 
 import moiq_jax
 from moiq_jax.algos import actor_critic, offpolicy, sac
+from moiq_jax.algos.adoption import adopt_between_preferences
 from moiq_jax.config import tuned
 from moiq_jax.experts import sac as sac_experts
 from moiq_jax.experts.cdst_oracle import expert_returns
@@ -124,12 +125,12 @@ def test_a_model_another_serves_better_takes_over_its_learner_and_replay():
     state, nets, obs_size = _marked_runner_state(prefs)
     # Model 0 returns [2, 2]; model 1 [5, 5] scores 5 under model 0's preference, 2.5x model 0's own 2.
     returns = jnp.array([[2.0, 2.0], [5.0, 5.0], [1.0, 9.0]])
-    adopted, donor = offpolicy.adopt_between_preferences(state, returns, prefs, margin=1.4)
+    learner, buffers, donor = adopt_between_preferences(state.learner, state.buffers, returns, prefs, margin=1.4)
     assert donor.tolist() == [1, 1, 2]
     obs = jax.random.normal(jax.random.PRNGKey(4), (6, obs_size))
     action = jax.random.uniform(jax.random.PRNGKey(5), (6, 2), minval=-1, maxval=1)
     at = lambda tree, i: jax.tree_util.tree_map(lambda x: x[i], tree)
-    before, after = state.learner.params, adopted.learner.params
+    before, after = state.learner.params, learner.params
     # Fed its own preference, model 0 now acts and values as model 1 did fed model 1's.
     np.testing.assert_allclose(nets.act(at(after.actor, 0), obs, prefs[0]), nets.act(at(before.actor, 1), obs, prefs[1]),
                                atol=1e-5)
@@ -138,19 +139,17 @@ def test_a_model_another_serves_better_takes_over_its_learner_and_replay():
             nets.critic.apply(at(getattr(after, critic), 0), obs, action, jnp.tile(prefs[0], (6, 1))),
             nets.critic.apply(at(getattr(before, critic), 1), obs, action, jnp.tile(prefs[1], (6, 1))), atol=1e-5)
     take = lambda tree, rows: jax.tree_util.tree_leaves(jax.tree_util.tree_map(lambda x: x[jnp.array(rows)], tree))
-    for new, old in zip(take((adopted.buffers, adopted.learner.actor_opt, adopted.learner.params.log_alpha), [0, 1, 2]),
-                        take((state.buffers, state.learner.actor_opt, state.learner.params.log_alpha), [1, 1, 2])):
-        np.testing.assert_array_equal(new, old)
-    for new, old in zip(take((adopted.learner, adopted.env_state, adopted.best_params), [1, 2]),
-                        take((state.learner, state.env_state, state.best_params), [1, 2])):
+    for new, old in zip(take((buffers, learner.actor_opt, learner.critic_opt, learner.params.log_alpha), [0, 1, 2]),
+                        take((state.buffers, state.learner.actor_opt, state.learner.critic_opt,
+                              state.learner.params.log_alpha), [1, 1, 2])):
+        np.testing.assert_array_equal(new, old)  # model 0 holds model 1's replay and optimiser states
+    for new, old in zip(take(learner, [1, 2]), take(state.learner, [1, 2])):
         np.testing.assert_array_equal(new, old)  # the others are untouched
-    for new, old in zip(jax.tree_util.tree_leaves((adopted.env_state, adopted.best_params, adopted.key)),
-                        jax.tree_util.tree_leaves((state.env_state, state.best_params, state.key))):
-        np.testing.assert_array_equal(new, old)  # every model keeps its env states, best parameters and key
     # Under the margin (3 more than 2 is not over 1.6 x 2), nothing is taken over.
-    kept, donor = offpolicy.adopt_between_preferences(state, returns, prefs, margin=1.6)
+    learner, buffers, donor = adopt_between_preferences(state.learner, state.buffers, returns, prefs, margin=1.6)
     assert donor.tolist() == [0, 1, 2]
-    for new, old in zip(jax.tree_util.tree_leaves(kept), jax.tree_util.tree_leaves(state)):
+    for new, old in zip(jax.tree_util.tree_leaves((learner, buffers)),
+                        jax.tree_util.tree_leaves((state.learner, state.buffers))):
         np.testing.assert_array_equal(new, old)
 
 

@@ -28,12 +28,13 @@ from flax import struct
 
 from moiq_jax import replay
 from moiq_jax.algos import actor_critic
+from moiq_jax.algos.adoption import adopt_between_preferences
 from moiq_jax.config import Config
 from moiq_jax.envs.wrappers import AutoReset, DoneOnAbsorption, VmapWrapper
 from moiq_jax.evaluate import preference_returns
 from moiq_jax.experts.demonstrations import Demonstrations
 from moiq_jax.experts.loading import load_demonstrations, preference_order
-from moiq_jax.networks import networks_of_config, preference_input_moved
+from moiq_jax.networks import networks_of_config
 from moiq_jax.preferences import check_preferences
 
 TRANSITION_FIELDS = ("obs", "action", "next_obs", "done")  # what the inverse-RL losses see of a transition
@@ -104,31 +105,6 @@ class RunnerState:
     best_params: Any
     best_return: jax.Array  # mean scalarised evaluation return of best_params
     extra: Any = None  # the algorithm's Extra state, leading expert axis
-
-
-def adopt_between_preferences(state: RunnerState, returns, preferences, margin):
-    """Models trained one per preference (``state`` with a leading model axis, ``returns`` ``[E, d]`` their
-    latest evaluation's vector returns): where another model's return, scalarised by model i's preference,
-    beats model i's own by more than ``margin`` times its absolute value, model i continues from the best
-    such model's learner (networks, optimiser states, temperature) and replay buffer, keeping its own
-    preference, env states, key and best parameters. The taken networks' first layers are moved
-    (``preference_input_moved``) so that, fed i's preference, they act as they did fed the donor's.
-    A model whose own preference another serves better is otherwise stuck in its gait; vector returns
-    score every model under every preference for free. Returns ``(state, donor)``: the model each one
-    continues from (itself where it adopted nothing)."""
-    scores = preferences @ returns.T  # [i, j]: model j's return scalarised by preference i
-    own = jnp.diagonal(scores)
-    best = jnp.argmax(scores, axis=1)
-    models = jnp.arange(preferences.shape[0])
-    donor = jnp.where(scores[models, best] - own > margin * jnp.abs(own), best, models)
-    taken = jax.tree_util.tree_map(lambda x: x[donor], (state.learner, state.buffers))
-    learner, buffers = taken
-    old, new = preferences[donor], preferences
-    move = jax.vmap(preference_input_moved)
-    params = learner.params.replace(actor=move(learner.params.actor, old, new),
-                                    critic=move(learner.params.critic, old, new),
-                                    target_critic=move(learner.params.target_critic, old, new))
-    return state.replace(learner=learner.replace(params=params), buffers=buffers), donor
 
 
 class Trainer(NamedTuple):
@@ -290,8 +266,9 @@ def make_trainer(config: Config, algorithm: Algorithm, demos: Demonstrations | N
                                                                           setup["preferences"][:, None])
             merged = {k: (v[:, 0] if v.ndim >= 2 and v.shape[1] == 1 else v) for k, v in metrics.items()}
             if c.adopt_margin is not None:
-                state, donor = adopt_between_preferences(state, merged["eval_return"], setup["preferences"],
-                                                         c.adopt_margin)
+                learner, buffers, donor = adopt_between_preferences(state.learner, state.buffers, merged["eval_return"],
+                                                                    setup["preferences"], c.adopt_margin)
+                state = state.replace(learner=learner, buffers=buffers)
                 given_index = jnp.argsort(setup["back"])  # canonical -> the config's expert index
                 merged["adopted_from"] = jnp.where(donor == jnp.arange(num_experts), -1, given_index[donor])
             return state, in_config_order(merged, setup["back"])
