@@ -102,8 +102,8 @@ def main() -> None:
     parser.add_argument("--updates-per-step", type=int, help="gradient updates per vectorised env step")
     parser.add_argument("--seed", type=int)
     parser.add_argument("--adopt-margin", type=float,
-                        help="an expert another beats under its preference by more than this fraction continues from "
-                             "that one's learner (moiq_jax.algos.adoption; default: never)")
+                        help="an expert another beats under its preference by more than this fraction of its best "
+                             "evaluation continues from that one's learner (moiq_jax.algos.adoption; default: never)")
     parser.add_argument("--num-demos", type=int, default=10)
     parser.add_argument("--time-limit", type=float, help="stop after the first evaluation past this many seconds")
     parser.add_argument("--run-dir", help="checkpoint the training state here after every evaluation")

@@ -50,7 +50,7 @@ class OffPolicyConfig:
     eval_episodes: int = _field(1, "episodes per evaluation (cdst and its experts are deterministic: one suffices)")
     adopt_margin: float | None = _field(
         None, "sac's experts (one model per preference): after each evaluation, a model that another beats under its own "
-              "preference by more than this fraction of its return continues from that model's learner and replay "
+              "preference by more than this fraction of its best return continues from that model's learner and replay "
               "(algos/adoption.py); None: never")
     absorbing_rollouts: bool = _field(
         True, "learners from demonstrations: after a termination, rollouts go on in the absorbing state to the time "

@@ -125,7 +125,8 @@ def test_a_model_another_serves_better_takes_over_its_learner_and_replay():
     state, nets, obs_size = _marked_runner_state(prefs)
     # Model 0 returns [2, 2]; model 1 [5, 5] scores 5 under model 0's preference, 2.5x model 0's own 2.
     returns = jnp.array([[2.0, 2.0], [5.0, 5.0], [1.0, 9.0]])
-    learner, buffers, donor = adopt_between_preferences(state.learner, state.buffers, returns, prefs, margin=1.4)
+    best = jnp.array([2.0, 5.0, 8.2])  # each model's best scalarised evaluation: here its latest
+    learner, buffers, donor = adopt_between_preferences(state.learner, state.buffers, returns, best, prefs, margin=1.4)
     assert donor.tolist() == [1, 1, 2]
     obs = jax.random.normal(jax.random.PRNGKey(4), (6, obs_size))
     action = jax.random.uniform(jax.random.PRNGKey(5), (6, 2), minval=-1, maxval=1)
@@ -145,12 +146,17 @@ def test_a_model_another_serves_better_takes_over_its_learner_and_replay():
         np.testing.assert_array_equal(new, old)  # model 0 holds model 1's replay and optimiser states
     for new, old in zip(take(learner, [1, 2]), take(state.learner, [1, 2])):
         np.testing.assert_array_equal(new, old)  # the others are untouched
-    # Under the margin (3 more than 2 is not over 1.6 x 2), nothing is taken over.
-    learner, buffers, donor = adopt_between_preferences(state.learner, state.buffers, returns, prefs, margin=1.6)
-    assert donor.tolist() == [0, 1, 2]
-    for new, old in zip(jax.tree_util.tree_leaves((learner, buffers)),
-                        jax.tree_util.tree_leaves((state.learner, state.buffers))):
-        np.testing.assert_array_equal(new, old)
+    # Under the margin (3 more than 2 is not over 1.6 x 2), nothing is taken over; nor when model 0's best
+    # evaluation (4.6) is within the margin of model 1's score, however poor its latest one.
+    for margin, best_of_0 in ((1.6, 2.0), (0.1, 4.6)):
+        learner, buffers, donor = adopt_between_preferences(state.learner, state.buffers, returns,
+                                                            best.at[0].set(best_of_0), prefs, margin)
+        assert donor.tolist() == [0, 1, 2]
+        for new, old in zip(jax.tree_util.tree_leaves((learner, buffers)),
+                            jax.tree_util.tree_leaves((state.learner, state.buffers))):
+            np.testing.assert_array_equal(new, old)
+    assert adopt_between_preferences(state.learner, state.buffers, returns, best.at[0].set(4.5), prefs, 0.1)[2].tolist() \
+        == [1, 1, 2]
 
 
 def test_adoption_runs_in_training_and_only_for_sac_experts():
@@ -162,9 +168,11 @@ def test_adoption_runs_in_training_and_only_for_sac_experts():
     assert adopted.shape == (2, 3) and set(adopted.ravel().tolist()) <= {-1, 0, 1, 2}
     assert all(a != i for row in adopted for i, a in enumerate(row))  # -1, or another expert (config order)
     scores = result.history["eval_return"] @ np.asarray(config.preferences).T  # [chunk, model j, preference i]
-    for chunk in range(2):  # a model adopts exactly when another beats it under its preference (margin 0)
-        own = np.diagonal(scores[chunk])
-        np.testing.assert_array_equal(adopted[chunk] >= 0, scores[chunk].max(axis=0) > own)
+    best = np.maximum.accumulate(result.history["eval_scalar_return"], axis=0)  # each model's best so far
+    for chunk in range(2):  # a model adopts exactly when another beats its best under its preference (margin 0)
+        others = np.where(np.eye(3, dtype=bool), -np.inf, scores[chunk])  # [model j, preference i], j != i
+        np.testing.assert_array_equal(adopted[chunk] >= 0, others.max(axis=0) > best[chunk])
+        np.testing.assert_array_equal(adopted[chunk][adopted[chunk] >= 0], others.argmax(axis=0)[adopted[chunk] >= 0])
     with pytest.raises(ValueError, match="must not see that reward"):
         moiq_jax.train(config.replace(algo="iq_learn"), log=None)
     with pytest.raises(ValueError, match="must not see that reward"):

@@ -13,19 +13,20 @@ import jax.numpy as jnp
 from moiq_jax.networks import preference_input_moved
 
 
-def adopt_between_preferences(learner, buffers, returns, preferences, margin):
+def adopt_between_preferences(learner, buffers, returns, best_returns, preferences, margin):
     """``learner`` and ``buffers`` of models trained one per preference (leading model axis), ``returns``
-    ``[E, d]`` their latest evaluation's vector returns: where another model's return, scalarised by model i's
-    preference, beats model i's own by more than ``margin`` times its absolute value, model i continues from
-    the best such model's learner (networks, optimiser states, temperature) and replay buffer. The taken
+    ``[E, d]`` their latest evaluation's vector returns, ``best_returns`` ``[E]`` each one's best scalarised
+    evaluation so far: where another model's latest return, scalarised by model i's preference, beats model i's
+    best by more than ``margin`` times its absolute value (its best, not its latest, so that one poor
+    evaluation does not hand a model over), model i continues from the best such model's learner (networks,
+    optimiser states, temperature) and replay buffer. The taken
     networks' first layers are moved (``preference_input_moved``) so that, fed i's preference, they act as they
     did fed the donor's. Returns ``(learner, buffers, donor)``, ``donor`` the model each one continues from
     (itself where it adopted nothing)."""
     scores = preferences @ returns.T  # [i, j]: model j's return scalarised by preference i
-    own = jnp.diagonal(scores)
     best = jnp.argmax(scores, axis=1)
     models = jnp.arange(preferences.shape[0])
-    donor = jnp.where(scores[models, best] - own > margin * jnp.abs(own), best, models)
+    donor = jnp.where(scores[models, best] - best_returns > margin * jnp.abs(best_returns), best, models)
     learner, buffers = jax.tree_util.tree_map(lambda x: x[donor], (learner, buffers))
     old, new = preferences[donor], preferences
     move = jax.vmap(preference_input_moved)

@@ -266,8 +266,9 @@ def make_trainer(config: Config, algorithm: Algorithm, demos: Demonstrations | N
                                                                           setup["preferences"][:, None])
             merged = {k: (v[:, 0] if v.ndim >= 2 and v.shape[1] == 1 else v) for k, v in metrics.items()}
             if c.adopt_margin is not None:
-                learner, buffers, donor = adopt_between_preferences(state.learner, state.buffers, merged["eval_return"],
-                                                                    setup["preferences"], c.adopt_margin)
+                learner, buffers, donor = adopt_between_preferences(
+                    state.learner, state.buffers, merged["eval_return"], state.best_return, setup["preferences"],
+                    c.adopt_margin)
                 state = state.replace(learner=learner, buffers=buffers)
                 given_index = jnp.argsort(setup["back"])  # canonical -> the config's expert index
                 merged["adopted_from"] = jnp.where(donor == jnp.arange(num_experts), -1, given_index[donor])
