@@ -19,9 +19,8 @@ def adopt_between_preferences(learner, buffers, returns, best_returns, preferenc
     evaluation so far: where another model's latest return, scalarised by model i's preference, beats model i's
     best by more than ``margin`` times its absolute value (its best, not its latest, so that one poor
     evaluation does not hand a model over), model i continues from the best such model's learner (networks,
-    optimiser states, temperature) and replay buffer. The taken
-    networks' first layers are moved (``preference_input_moved``) so that, fed i's preference, they act as they
-    did fed the donor's. Returns ``(learner, buffers, donor)``, ``donor`` the model each one continues from
+    optimiser states, temperature) and replay buffer. The taken networks' first layers are moved
+    (``preference_input_moved``) so that, fed i's preference, they act as they did fed the donor's. Returns ``(learner, buffers, donor)``, ``donor`` the model each one continues from
     (itself where it adopted nothing)."""
     scores = preferences @ returns.T  # [i, j]: model j's return scalarised by preference i
     best = jnp.argmax(scores, axis=1)
