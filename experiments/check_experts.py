@@ -6,7 +6,8 @@ distinct the experts are (each expert scored under every preference).
 
 Reads ``<demos>/<env>-experts.npz`` and ``<demos>/<env>.npz``; writes ``<demos>/<env>-check.json`` and
 prints the table. Episodes use MO-Gymnasium's ``reset(seed=i)`` for i < episodes, its 1,000-step limit,
-and each expert's deterministic (mean) action, as the demonstrations do.
+and each expert's deterministic (mean) action, as the demonstrations do. ``fell``: episodes ended by a fall before
+the time limit, in MO-Gymnasium / in the demonstrations (which reach the absorbing state instead).
 """
 
 from __future__ import annotations
@@ -33,14 +34,16 @@ MO_GYMNASIUM = {
 }
 
 
-def gymnasium_returns(env: str, config, actor_params, episodes: int) -> np.ndarray:
-    """``[E, episodes, d]`` vector returns of each expert in MO-Gymnasium's env."""
+def gymnasium_returns(env: str, config, actor_params, episodes: int) -> tuple[np.ndarray, np.ndarray]:
+    """``[E, episodes, d]`` vector returns of each expert in MO-Gymnasium's env, and ``[E, episodes]`` whether
+    the episode ended by termination (a fall) before the time limit."""
     gym_id, columns = MO_GYMNASIUM[env]
     gym_env = mo_gymnasium.make(gym_id)
     c = config.offpolicy
     nets = networks_of_sizes(c.hidden_sizes, len(columns), gym_env.action_space.shape[0], c.action_scale)
     act = jax.jit(lambda params, obs, w: nets.act(params, obs[None], w)[0])
     returns = np.zeros((len(config.preferences), episodes, len(columns)))
+    fell = np.zeros((len(config.preferences), episodes), bool)
     for i, preference in enumerate(jnp.asarray(config.preferences, jnp.float32)):
         params = jax.tree_util.tree_map(lambda x, i=i: x[i], actor_params)
         for episode in range(episodes):
@@ -51,15 +54,17 @@ def gymnasium_returns(env: str, config, actor_params, episodes: int) -> np.ndarr
                 obs, reward, terminated, truncated, _ = gym_env.step(action)
                 returns[i, episode] += np.asarray(reward)[columns]
                 done = terminated or truncated
+            fell[i, episode] = terminated
     gym_env.close()
-    return returns
+    return returns, fell
 
 
 def check(env: str, demos_dir: pathlib.Path, episodes: int) -> dict:
     config, actor = sac.load_experts(demos_dir / f"{env}-experts.npz")
     demos = Demonstrations.load(demos_dir / f"{env}.npz")
     preferences = np.asarray(config.preferences, np.float64)
-    gym = gymnasium_returns(env, config, actor, episodes)
+    gym, gym_fell = gymnasium_returns(env, config, actor, episodes)
+    demo_fell = demos.obs[..., -1].max(axis=-1) > 0  # [E, demos]: reached the absorbing state (the env's flag)
     gym_mean, demo_mean = gym.mean(1), demos.mean_returns().astype(np.float64)
     paper = sac.PAPER_EXPERT_RETURNS[env]
     cross = preferences @ gym_mean.T  # [i, j]: expert j's MO-Gymnasium return scalarised by preference i
@@ -70,6 +75,9 @@ def check(env: str, demos_dir: pathlib.Path, episodes: int) -> dict:
         experts.append({
             "preference": w.tolist(), "gym_vector_return": gym_mean[i].round(1).tolist(),
             "gym_scalar_return": round(scalar, 1), "gym_scalar_std": round(float((gym[i] @ w).std()), 1),
+            "gym_scalar_returns": (gym[i] @ w).round(1).tolist(), "gym_episodes_fallen": int(gym_fell[i].sum()),
+            "demo_scalar_returns": (demos.rewards[i].sum(1).astype(np.float64) @ w).round(1).tolist(),
+            "demo_episodes_fallen": int(demo_fell[i].sum()),
             "demo_vector_return": demo_mean[i].round(1).tolist(), "demo_scalar_return": round(demo_scalar, 1),
             "gym_over_demos": round(scalar / demo_scalar, 3) if demo_scalar else None,
             "within_10pct_of_demos": bool(abs(scalar - demo_scalar) <= 0.1 * abs(demo_scalar)),
@@ -92,11 +100,12 @@ def main() -> None:
     (demos_dir / f"{args.env}-check.json").write_text(json.dumps(report, indent=1))
     print(f"{args.env}: each expert in {report['gym_id']}, {args.episodes} episodes")
     print(f"  {'preference':<16} {'MO-Gym vector':<26} {'MO-Gym':>8} {'demos':>8} {'ratio':>6} {'paper':>7} "
-          f"{'ratio':>6}  as good under this preference")
+          f"{'ratio':>6} {'fell':>5}  as good under this preference")
     for e in report["experts"]:
         print(f"  {e['preference']!s:<16} {e['gym_vector_return']!s:<26} {e['gym_scalar_return']:8.1f} "
               f"{e['demo_scalar_return']:8.1f} {e['gym_over_demos'] or float('nan'):6.2f} "
-              f"{e['paper_expert_return']:7.0f} {e['gym_over_paper']:6.2f}  "
+              f"{e['paper_expert_return']:7.0f} {e['gym_over_paper']:6.2f} "
+              f"{e['gym_episodes_fallen']:2d}/{e['demo_episodes_fallen']:<2d}  "
               f"{e['experts_as_good_under_this_preference'] or 'none'}")
 
 

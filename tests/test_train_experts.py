@@ -1,6 +1,6 @@
 """experiments/train_experts.py end to end on mo-hopper at smoke size: a run cut by --time-limit, resumed from
-its checkpoint with experts adopting between preferences, then demonstrations recorded from the saved experts,
-each record consistent with the others."""
+its checkpoint with experts adopting between preferences, demonstrations recorded from the saved experts, and
+the experts run in MO-Gymnasium by check_experts.py, each record consistent with the others."""
 
 import json
 import os
@@ -15,8 +15,8 @@ from moiq_jax.experts import Demonstrations
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 
 
-def train_experts(*args):
-    out = subprocess.run([sys.executable, str(ROOT / "experiments" / "train_experts.py"), "--env", "mo-hopper", *args],
+def train_experts(*args, script="train_experts.py"):
+    out = subprocess.run([sys.executable, str(ROOT / "experiments" / script), "--env", "mo-hopper", *args],
                          capture_output=True, text=True, timeout=600, env={**os.environ, "PYTHONPATH": str(ROOT)},
                          check=False)
     assert out.returncode == 0, out.stderr[-3000:]
@@ -68,3 +68,15 @@ def test_cut_resumed_adopting_run_then_demonstrations(tmp_path):
     experts = json.loads((tmp_path / "mo-hopper-experts.json").read_text())["experts"]
     for expert, w, ret in zip(experts, preferences, demos.mean_returns()):
         assert expert["scalar_return"] == round(float(w @ ret), 1) and f"{expert['scalar_return']:10.1f}" in recorded
+
+    checked = train_experts("--episodes", "2", "--demos", str(tmp_path), script="check_experts.py")
+    report = json.loads((tmp_path / "mo-hopper-check.json").read_text())
+    absorbed = demos.obs[..., -1].max(axis=-1) > 0  # the demonstrations' absorbing-state flag
+    for expert, w, demo_returns, fell in zip(report["experts"], preferences, demos.rewards.sum(2), absorbed):
+        np.testing.assert_allclose(expert["demo_scalar_returns"], demo_returns @ w, atol=0.06)
+        assert expert["demo_episodes_fallen"] == int(fell.sum())
+        assert abs(expert["gym_scalar_return"] - np.mean(expert["gym_scalar_returns"])) <= 0.1
+        assert 0 <= expert["gym_episodes_fallen"] <= 2
+        assert f"{expert['gym_episodes_fallen']:2d}/{expert['demo_episodes_fallen']:<2d}" in checked
+    # A 24-step hopper falls: its 1,000-step episodes in the absorbing-state env and in MO-Gymnasium end early.
+    assert absorbed.all() and all(e["gym_episodes_fallen"] == 2 for e in report["experts"])
