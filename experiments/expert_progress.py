@@ -17,7 +17,8 @@ import numpy as np
 
 
 def read_evaluations(run_dir: pathlib.Path, first_step: int = 0):
-    """``(steps, labels, vectors [step, expert, d], adopted [step, expert] or None)`` from ``metrics.csv``."""
+    """``(steps, labels, vectors [step, expert, d], adopted [step, expert])`` from ``metrics.csv``; ``adopted``:
+    the expert each one continued from after that evaluation, -1 for none, NaN where the run did not record it."""
     path = run_dir / "metrics.csv"
     if not path.exists():
         raise FileNotFoundError(f"{run_dir} has no metrics.csv (is it a --run-dir of train_experts.py?)")

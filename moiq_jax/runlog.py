@@ -71,13 +71,14 @@ class RunLog:
             return
         new = mode == "w" or not os.path.exists(self.csv_path) or os.path.getsize(self.csv_path) == 0
         fields = list(rows[0])
-        if not new:
+        if not new:  # append under the file's header; a metric it lacks (a resumed run's) rewrites it once
             with open(self.csv_path, newline="") as f:
-                written = csv.DictReader(f)
-                header, earlier = list(written.fieldnames or []), list(written)
-            if header != fields:  # a resumed run that logs other metrics: one header over all rows, gaps empty
-                fields = header + [name for name in fields if name not in header]
-                rows, mode, new = earlier + rows, "w", True
+                header = next(csv.reader(f), [])
+            added = [name for name in fields if name not in header]
+            fields = header + added
+            if added:
+                with open(self.csv_path, newline="") as f:
+                    rows, mode, new = list(csv.DictReader(f)) + rows, "w", True
         with open(self.csv_path, mode, newline="") as f:
             writer = csv.DictWriter(f, fieldnames=fields, restval="")
             if new:

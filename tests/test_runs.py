@@ -81,6 +81,15 @@ def test_run_log_writes_config_csv_and_tensorboard_and_resumes_cleanly(tmp_path)
     assert [r["env_steps"] for r in rows] == ["10", "10", "20", "20", "30", "30", "40", "40"]
     assert [r["adopted_from"] for r in rows] == [""] * 6 + ["-1.0", "0.0"]
     assert rows[-1]["loss"] == "7.0" and rows[-1]["eval_vector_return_1"] == "-4.0"
+    # Later rows go under that header by name, although their own columns come in another order.
+    run = RunLog(tmp_path, config, total_steps=50, resume_step=40, progress=False)
+    run.log(50, {**metrics, "loss": 8.0, "adopted_from": np.array([1, -1])})
+    run.close()
+    header, *_ = (tmp_path / "metrics.csv").read_text().splitlines()
+    assert header.split(",")[-1] == "adopted_from"
+    rows = read_rows(tmp_path / "metrics.csv")
+    assert [(r["env_steps"], r["adopted_from"], r["loss"]) for r in rows[-4:]] == [
+        ("40", "-1.0", "7.0"), ("40", "0.0", "7.0"), ("50", "1.0", "8.0"), ("50", "-1.0", "8.0")]
 
 
 def read_rows(path):
