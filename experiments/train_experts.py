@@ -30,7 +30,7 @@ import numpy as np
 
 import moiq_jax
 from moiq_jax.experts import sac
-from moiq_jax.runtime import pin_to_cores
+from moiq_jax.runtime import parse_args_on_cores
 
 
 def train(args, out: pathlib.Path) -> None:
@@ -111,14 +111,7 @@ def main() -> None:
     parser.add_argument("--no-demos", action="store_true", help="train only; record later with --record")
     parser.add_argument("--record", action="store_true", help="record demonstrations from saved experts only")
     parser.add_argument("--out", default="experiments/demos")
-    parser.add_argument("--cpu-cores", type=int, nargs="+",
-                        help="run on these CPU cores only (one: XLA single-threaded; runtime.pin_to_cores)")
-    args = parser.parse_args()
-    if args.cpu_cores:
-        try:
-            pin_to_cores(args.cpu_cores)
-        except ValueError as error:
-            parser.error(str(error))
+    args = parse_args_on_cores(parser)
     if args.resume and not args.run_dir:
         parser.error("--resume needs the --run-dir of the run to continue")
     out = pathlib.Path(args.out)

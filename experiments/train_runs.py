@@ -15,7 +15,7 @@ import argparse
 
 import paper_mujoco as paper
 
-from moiq_jax.runtime import pin_to_cores
+from moiq_jax.runtime import parse_args_on_cores
 
 
 def main() -> None:
@@ -29,14 +29,7 @@ def main() -> None:
     parser.add_argument("--quick", action="store_true", help="the CI smoke size (kept under <cache>/quick/runs)")
     parser.add_argument("--cache", default="results/mujoco/sweeps", help="where runs train (checkpointed)")
     parser.add_argument("--archive", help="where finished runs are kept; default results/mujoco_<protocol>/runs")
-    parser.add_argument("--cpu-cores", type=int, nargs="+",
-                        help="run on these CPU cores only (one: XLA single-threaded; runtime.pin_to_cores)")
-    args = parser.parse_args()
-    if args.cpu_cores:
-        try:
-            pin_to_cores(args.cpu_cores)
-        except ValueError as error:
-            parser.error(str(error))
+    args = parse_args_on_cores(parser)
     config, sweep_betas = paper.sweep_of(args.env, paper.protocol_of(args), args.sweep)
     if sweep_betas is None and args.betas:
         parser.error(f"the {args.sweep} sweep has no beta")

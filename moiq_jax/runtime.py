@@ -49,6 +49,20 @@ def pin_to_cores(cores) -> None:
         os.environ["XLA_FLAGS"] = " ".join([*flags, *missing])
 
 
+def parse_args_on_cores(parser, argv=None):
+    """``parser``'s arguments with a ``--cpu-cores N...`` option added, the process pinned to those cores
+    (``pin_to_cores``) when it is given; a core this process may not use is a usage error."""
+    parser.add_argument("--cpu-cores", type=int, nargs="+",
+                        help="run on these CPU cores only (one: XLA single-threaded; runtime.pin_to_cores)")
+    args = parser.parse_args(argv)
+    if args.cpu_cores:
+        try:
+            pin_to_cores(args.cpu_cores)
+        except ValueError as error:
+            parser.error(str(error))
+    return args
+
+
 def use_compilation_cache(path: str | None = None) -> str | None:
     """Keep compiled programs on disk (JAX's persistent compilation cache), so that the same program run
     again, in this process or a later one, is loaded instead of compiled (a cdst ``train``: about 11 s to
