@@ -30,6 +30,7 @@ MO_GYMNASIUM = {
     "mo-hopper": ("mo-hopper-v5", [0, 1, 2]),
     "mo-walker2d": ("mo-walker2d-v5", [0, 1]),
     "mo-halfcheetah": ("mo-halfcheetah-v5", [0, 1]),
+    "mo-halfcheetah-v4": ("mo-halfcheetah-v4", [0, 1]),
     "mo-ant": ("mo-ant-v5", [0, 2]),
 }
 

@@ -112,5 +112,7 @@ register("mo-walker2d", _mujoco("mo-walker2d"), 1000,
          "Walker2d-v5: (x velocity, -|a|^2) + healthy (MO-Gymnasium mo-walker2d-v5)", _MUJOCO_BACKENDS)
 register("mo-halfcheetah", _mujoco("mo-halfcheetah"), 1000,
          "HalfCheetah-v5: (x velocity, -|a|^2) (MO-Gymnasium mo-halfcheetah-v5)", _MUJOCO_BACKENDS)
+register("mo-halfcheetah-v4", _mujoco("mo-halfcheetah-v4"), 1000,
+         "HalfCheetah: (x velocity, -0.1 |a|^2) (MO-Gymnasium mo-halfcheetah-v4)", _MUJOCO_BACKENDS)
 register("mo-ant", _mujoco("mo-ant"), 1000,
          "Ant-v5: (x velocity, -|a|^2) + healthy - contact cost (mo-ant-v5's objectives 0 and 2)", _MUJOCO_BACKENDS)

@@ -6,7 +6,7 @@
 
 from moiq_jax.envs.mujoco.ant import Ant
 from moiq_jax.envs.mujoco.base import BACKENDS, MujocoEnv, Physics, PlanarTask, Task
-from moiq_jax.envs.mujoco.half_cheetah import HalfCheetah
+from moiq_jax.envs.mujoco.half_cheetah import HalfCheetah, HalfCheetahV4
 from moiq_jax.envs.mujoco.hopper import Hopper
 from moiq_jax.envs.mujoco.native import NativeEnv
 from moiq_jax.envs.mujoco.walker2d import Walker2d
@@ -15,6 +15,7 @@ TASKS: dict[str, type[Task]] = {
     "mo-hopper": Hopper,
     "mo-walker2d": Walker2d,
     "mo-halfcheetah": HalfCheetah,
+    "mo-halfcheetah-v4": HalfCheetahV4,
     "mo-ant": Ant,
 }
 
@@ -31,5 +32,5 @@ def make_env(task: str, backend: str, **kwargs) -> MujocoEnv:
     raise ValueError(f"unknown backend {backend!r}; choose one of {', '.join(BACKENDS)}")
 
 
-__all__ = ["BACKENDS", "TASKS", "Ant", "HalfCheetah", "Hopper", "MujocoEnv", "NativeEnv", "Physics", "PlanarTask",
+__all__ = ["BACKENDS", "TASKS", "Ant", "HalfCheetah", "HalfCheetahV4", "Hopper", "MujocoEnv", "NativeEnv", "Physics", "PlanarTask",
            "Task", "Walker2d", "make_env"]

@@ -1,4 +1,5 @@
-"""mo-halfcheetah: Gymnasium's HalfCheetah-v5 with MO-Gymnasium's ``mo-halfcheetah-v5`` vector reward."""
+"""mo-halfcheetah: Gymnasium's HalfCheetah-v5 with MO-Gymnasium's ``mo-halfcheetah-v5`` vector reward; and
+``mo-halfcheetah-v4``'s, whose cost objective is a tenth of v5's (MO-Gymnasium's earlier version)."""
 
 from __future__ import annotations
 
@@ -10,7 +11,7 @@ class HalfCheetah(PlanarTask):
     Gaussian on qvel).
 
     Observation (17): ``qpos[1:]`` and ``qvel`` (not clipped). Reward (2), as ``mo-halfcheetah-v5``:
-    x velocity and ``-sum(action ** 2)``. Never terminates.
+    x velocity and ``-cost_scale * sum(action ** 2)`` (``cost_scale`` 1). Never terminates.
     """
 
     xml_file = "half_cheetah.xml"
@@ -20,8 +21,16 @@ class HalfCheetah(PlanarTask):
     reward_dim = 2
     observation_size = 17
     action_size = 6
+    cost_scale = 1.0
 
     def reward_and_done(self, before, after, action, xp):
         velocity = self.x_velocity(before, after)
-        reward = xp.stack([velocity, neg_squared_action(action, xp)], axis=-1)
+        reward = xp.stack([velocity, self.cost_scale * neg_squared_action(action, xp)], axis=-1)
         return reward, xp.zeros(velocity.shape, bool)
+
+
+class HalfCheetahV4(HalfCheetah):
+    """The same cheetah with ``mo-halfcheetah-v4``'s reward: its cost objective is Gymnasium's control reward,
+    ``-0.1 * sum(action ** 2)`` (v5 divides the 0.1 out). The dynamics of v4 and v5 are the same."""
+
+    cost_scale = 0.1
