@@ -2,10 +2,12 @@
 demonstrations' (issue 17: within 10%) and the paper's expert column (its Table 1: at least 90%), and how
 distinct the experts are (each expert scored under every preference).
 
-    PYTHONPATH=. python experiments/check_experts.py --env mo-hopper [--episodes 10] [--demos experiments/demos]
+    PYTHONPATH=. python experiments/check_experts.py --env mo-hopper [--episodes 10] [--first-seed 0]
+        [--demos experiments/demos] [--out FILE]
 
-Reads ``<demos>/<env>-experts.npz`` and ``<demos>/<env>.npz``; writes ``<demos>/<env>-check.json`` and
-prints the table. Episodes use MO-Gymnasium's ``reset(seed=i)`` for i < episodes, its 1,000-step limit,
+Reads ``<demos>/<env>-experts.npz`` and ``<demos>/<env>.npz``; writes ``<demos>/<env>-check.json`` (or ``--out``)
+and prints the table. Episodes use MO-Gymnasium's ``reset(seed=first_seed + i)`` for i < episodes (another
+``--first-seed`` gives episodes not seen before, to test experts chosen on these), its 1,000-step limit,
 and each expert's deterministic (mean) action, as the demonstrations do. ``fell``: episodes ended by a fall before
 the time limit, in MO-Gymnasium / in the demonstrations (which reach the absorbing state instead).
 """
@@ -35,7 +37,7 @@ MO_GYMNASIUM = {
 }
 
 
-def gymnasium_returns(env: str, config, actor_params, episodes: int) -> tuple[np.ndarray, np.ndarray]:
+def gymnasium_returns(env: str, config, actor_params, episodes: int, first_seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
     """``[E, episodes, d]`` vector returns of each expert in MO-Gymnasium's env, and ``[E, episodes]`` whether
     the episode ended by termination (a fall) before the time limit."""
     gym_id, columns = MO_GYMNASIUM[env]
@@ -48,7 +50,7 @@ def gymnasium_returns(env: str, config, actor_params, episodes: int) -> tuple[np
     for i, preference in enumerate(jnp.asarray(config.preferences, jnp.float32)):
         params = jax.tree_util.tree_map(lambda x, i=i: x[i], actor_params)
         for episode in range(episodes):
-            obs, _ = gym_env.reset(seed=episode)
+            obs, _ = gym_env.reset(seed=first_seed + episode)
             done = False
             while not done:
                 action = np.asarray(act(params, jnp.asarray(obs, jnp.float32), preference), np.float64)
@@ -60,11 +62,11 @@ def gymnasium_returns(env: str, config, actor_params, episodes: int) -> tuple[np
     return returns, fell
 
 
-def check(env: str, demos_dir: pathlib.Path, episodes: int) -> dict:
+def check(env: str, demos_dir: pathlib.Path, episodes: int, first_seed: int = 0) -> dict:
     config, actor = sac.load_experts(demos_dir / f"{env}-experts.npz")
     demos = Demonstrations.load(demos_dir / f"{env}.npz")
     preferences = np.asarray(config.preferences, np.float64)
-    gym, gym_fell = gymnasium_returns(env, config, actor, episodes)
+    gym, gym_fell = gymnasium_returns(env, config, actor, episodes, first_seed)
     demo_fell = demos.obs[..., -1].max(axis=-1) > 0  # [E, demos]: reached the absorbing state (the env's flag)
     gym_mean, demo_mean = gym.mean(1), demos.mean_returns().astype(np.float64)
     paper = sac.PAPER_EXPERT_RETURNS[env]
@@ -86,7 +88,7 @@ def check(env: str, demos_dir: pathlib.Path, episodes: int) -> dict:
             "at_least_90pct_of_paper": bool(scalar >= 0.9 * p),
             "experts_as_good_under_this_preference": [preferences[j].tolist() for j in rivals],
         })
-    return {"env": env, "gym_id": MO_GYMNASIUM[env][0], "episodes": episodes,
+    return {"env": env, "gym_id": MO_GYMNASIUM[env][0], "episodes": episodes, "first_seed": first_seed,
             "scalarised_by_row_preference_of_column_expert": cross.round(1).tolist(), "experts": experts}
 
 
@@ -94,12 +96,14 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--env", required=True, choices=sorted(MO_GYMNASIUM))
     parser.add_argument("--episodes", type=int, default=10)
+    parser.add_argument("--first-seed", type=int, default=0, help="the first episode's reset seed")
     parser.add_argument("--demos", default="experiments/demos", help="folder of the expert and demonstration files")
+    parser.add_argument("--out", help="the report's path (default <demos>/<env>-check.json)")
     args = parser.parse_args()
     demos_dir = pathlib.Path(args.demos)
-    report = check(args.env, demos_dir, args.episodes)
-    (demos_dir / f"{args.env}-check.json").write_text(json.dumps(report, indent=1))
-    print(f"{args.env}: each expert in {report['gym_id']}, {args.episodes} episodes")
+    report = check(args.env, demos_dir, args.episodes, args.first_seed)
+    pathlib.Path(args.out or demos_dir / f"{args.env}-check.json").write_text(json.dumps(report, indent=1))
+    print(f"{args.env}: each expert in {report['gym_id']}, {args.episodes} episodes from reset seed {args.first_seed}")
     print(f"  {'preference':<16} {'MO-Gym vector':<26} {'MO-Gym':>8} {'demos':>8} {'ratio':>6} {'paper':>7} "
           f"{'ratio':>6} {'fell':>5}  as good under this preference")
     for e in report["experts"]:
