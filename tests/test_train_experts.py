@@ -80,3 +80,10 @@ def test_cut_resumed_adopting_run_then_demonstrations(tmp_path):
         assert f"{expert['gym_episodes_fallen']:2d}/{expert['demo_episodes_fallen']:<2d}" in checked
     # A 24-step hopper falls: its 1,000-step episodes in the absorbing-state env and in MO-Gymnasium end early.
     assert absorbed.all() and all(e["gym_episodes_fallen"] == 2 for e in report["experts"])
+    # Held-out episodes: from reset seed 1, the first episode is the one above from seed 1, in a file of its own.
+    train_experts("--episodes", "1", "--first-seed", "1", "--demos", str(tmp_path), "--out", str(tmp_path / "held.json"),
+                  script="check_experts.py")
+    held = json.loads((tmp_path / "held.json").read_text())
+    assert held["first_seed"] == 1 and json.loads((tmp_path / "mo-hopper-check.json").read_text()) == report
+    for expert, seen in zip(held["experts"], report["experts"]):
+        assert expert["gym_scalar_returns"] == seen["gym_scalar_returns"][1:]
