@@ -46,7 +46,7 @@ def test_random_rollout_prints_vector_returns_consistent_with_lengths():
 def test_unknown_env_is_a_clear_error():
     out = moiq("rollout", "--env", "nope")
     assert out.returncode == 2
-    assert "unknown env 'nope'; known envs: cdst, dst, dst-concave, dst-mini, mo-ant, mo-halfcheetah, mo-hopper, mo-walker2d" in out.stderr
+    assert "unknown env 'nope'; known envs: cdst, dst, dst-concave, dst-mini, mo-ant, mo-halfcheetah, mo-halfcheetah-v4, mo-hopper, mo-walker2d" in out.stderr
 
 
 def test_demos_records_the_exact_experts_and_describes_the_file(tmp_path):
