@@ -28,7 +28,7 @@ import moiq_jax
 from moiq_jax.evaluate import hypervolume
 from moiq_jax.preferences import preference_sweep
 
-TWO_OBJECTIVES = tuple(env for env in paper.ENVS if len(paper.moiq_config(env).preferences[0]) == 2)
+TWO_OBJECTIVES = tuple(env for env in paper.TASKS if len(paper.moiq_config(env).preferences[0]) == 2)
 
 
 def main() -> None:

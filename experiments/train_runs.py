@@ -20,7 +20,7 @@ from moiq_jax.runtime import parse_args_on_cores
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--env", required=True, choices=paper.ENVS)
+    parser.add_argument("--env", required=True, choices=paper.TASKS)
     parser.add_argument("--sweep", default="moiq", choices=paper.SWEEPS,
                         help="; ".join(f"{name}: {what}" for name, what in paper.SWEEPS.items()))
     parser.add_argument("--betas", type=float, nargs="+", help="default: all the sweep's (none for gail, iq_learn)")
