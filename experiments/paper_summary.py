@@ -31,7 +31,7 @@ CDST_PREFERENCES = ((0.9, 0.1), (0.5, 0.5), (0.1, 0.9))
 # The paper's continuous DST rows (its Tables 1 and 2); its Table 3 has no continuous DST row.
 PAPER_CDST = {"moiq": (20.03, 5.05, -1.73), "expert": (20.03, 5.05, -1.73),
               "beta0": (19.96, 5.044, -1.736), "beta5": (19.927, 5.044, -1.736)}
-PAPER_TABLE1_EXPERT = {**{env: PAPER_EXPERT_RETURNS[env] for env in paper.ENVS}, "cdst": PAPER_CDST["expert"]}
+PAPER_TABLE1_EXPERT = {**{env: PAPER_EXPERT_RETURNS[env] for env in paper.TASKS}, "cdst": PAPER_CDST["expert"]}
 PAPER_TABLE1_MOIQ = {**paper.PAPER_TABLE1, "cdst": PAPER_CDST["moiq"]}
 
 
@@ -84,7 +84,7 @@ def outputs_by_env(folder: pathlib.Path, name: str) -> dict[str, dict]:
     """Each MuJoCo task's record of output ``name`` (``table1`` ... ``figure4``) under one protocol's folder: its
     per-task run ``<env>/<name>/<name>.json`` where there is one, else the all-task run ``<name>/<name>.json``."""
     sources = {}
-    for env in paper.ENVS:
+    for env in paper.TASKS:
         for path in (folder / env / name / f"{name}.json", folder / name / f"{name}.json"):
             if path.exists():
                 sources[env] = json.loads(path.read_text())

@@ -218,7 +218,7 @@ def test_each_protocol_configures_what_its_record_names(protocol):
     sys.path.insert(0, str(ROOT / "experiments"))
     import paper_mujoco as paper
 
-    for env in paper.ENVS:
+    for env in paper.TASKS:
         moiq = paper.moiq_config(env, protocol).validate().to_dict()
         gail = paper.gail_config(env, protocol).validate().to_dict()
         for name, value in paper.protocol_settings(protocol).items():
@@ -242,7 +242,7 @@ def test_figure2_shares_gail_runs_only_between_protocols_that_configure_gail_ali
 
     args = argparse.Namespace(protocol="cpu_recipe_online_penalty", gail_protocol="cpu_recipe", quick=False,
                               archive="elsewhere", seeds=1)
-    for env in paper.ENVS:
+    for env in paper.TASKS:
         assert paper.gail_config(env, "cpu_recipe") == paper.gail_config(env, "cpu_recipe_online_penalty")
         shared = figure2.gail_args(args, env)
         assert (shared.protocol, shared.archive, args.protocol) == ("cpu_recipe", None, "cpu_recipe_online_penalty")
