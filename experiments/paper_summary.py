@@ -21,6 +21,7 @@ import argparse
 import csv
 import json
 import pathlib
+import subprocess
 
 import numpy as np
 import paper_mujoco as paper
@@ -67,13 +68,13 @@ def cdst_rows(results: pathlib.Path) -> tuple[list[dict], list[dict]]:
     return table1, table2
 
 
-def table1_row(env, preference, beta, mean, std, expert, seeds, protocol) -> dict:
+def table1_row(env, preference, beta, mean, std, expert, seeds, protocol, demos=None) -> dict:
     e = [tuple(w) for w in paper_preferences(env)].index(tuple(preference))
     ratio = mean / expert  # shown; the claim is judged by the difference, which negative returns keep meaningful
     return {"env": env, "preference": preference, "beta": beta, "protocol": protocol, "moiq": round(float(mean), 2),
             "moiq_std": round(float(std), 2), "expert": round(float(expert), 2), "ratio": round(float(ratio), 3),
             "seeds": seeds, "paper_moiq": PAPER_TABLE1_MOIQ[env][e], "paper_expert": PAPER_TABLE1_EXPERT[env][e],
-            "claim_holds": paper.near_expert(mean, expert)}
+            "demos": demos, "claim_holds": paper.near_expert(mean, expert)}
 
 
 def paper_preferences(env: str):
@@ -93,8 +94,30 @@ def outputs_by_env(folder: pathlib.Path, name: str) -> dict[str, dict]:
 
 
 def env_rows(folder: pathlib.Path, name: str) -> list[dict]:
-    """The rows of output ``name`` under ``folder``, each task's from its source (``outputs_by_env``)."""
-    return [r for env, record in outputs_by_env(folder, name).items() for r in record.get("rows", []) if r["env"] == env]
+    """The rows of output ``name`` under ``folder``, each task's from its source (``outputs_by_env``), each with
+    ``demos``: whether it was made from the committed demonstrations (``demos_of``)."""
+    return [{**r, "demos": demos_of(env, record)} for env, record in outputs_by_env(folder, name).items()
+            for r in record.get("rows", []) if r["env"] == env]
+
+
+def demos_of(env: str, record: dict) -> str | None:
+    """``"committed"`` if output ``record`` of ``env`` was made from the committed demonstrations, ``"replaced"`` if
+    from earlier ones (an expert's demonstrations replaced since leave its runs' figures about other experts), None
+    if it cannot tell. Judged by git, where the record names the commit that wrote it (was the task's demonstrations
+    file changed since?), else by its Table 1 rows' expert returns against the committed demonstrations'."""
+    commit = (record.get("provenance") or {}).get("commit")
+    if commit:
+        changed = subprocess.run(["git", "-C", str(paper.ROOT), "log", "--format=%H", f"{commit}..HEAD", "--",
+                                  f"experiments/demos/{env}.npz"], capture_output=True, text=True, check=False)
+        if changed.returncode == 0:
+            return "replaced" if changed.stdout.strip() else "committed"
+    rows = [r for r in record.get("rows", []) if r.get("env") == env and "expert" in r]
+    if not rows:
+        return None
+    experts = paper.expert_returns(env) @ np.asarray(paper_preferences(env)).T  # [E, E]: expert e under preference f
+    expert_of = {tuple(w): experts[e, e] for e, w in enumerate(paper_preferences(env))}
+    return "committed" if all(abs(r["expert"] - expert_of[tuple(r["preference"])]) <= 0.01 + 1e-6 * abs(r["expert"])
+                              for r in rows) else "replaced"
 
 
 def mujoco_rows(results: pathlib.Path) -> tuple[list[dict], list[dict], list[dict]]:
@@ -104,17 +127,18 @@ def mujoco_rows(results: pathlib.Path) -> tuple[list[dict], list[dict], list[dic
         protocol = folder.name.removeprefix("mujoco_")
         for r in env_rows(folder, "table1"):
             table1.append(table1_row(r["env"], r["preference"], r["beta"], r["moiq_mean"], r["moiq_std"], r["expert"],
-                                     r["seeds"], protocol))
+                                     r["seeds"], protocol, r["demos"]))
         for r in env_rows(folder, "table2"):
             paper_better = r["paper_beta5"] > r["paper_beta0"]
             table2.append({"env": r["env"], "preference": r["preference"], "protocol": protocol, "beta0": r["beta0"],
                            "beta5": r["beta5"], "beta0.5": r.get("beta0.5"), "beta0_last": r.get("beta0_last"),
                            "beta5_last": r.get("beta5_last"), "paper_beta0": r["paper_beta0"],
-                           "paper_beta5": r["paper_beta5"], "claim_holds": (r["beta5"] > r["beta0"]) == paper_better})
+                           "paper_beta5": r["paper_beta5"], "demos": r["demos"],
+                           "claim_holds": (r["beta5"] > r["beta0"]) == paper_better})
         for r in env_rows(folder, "table3"):
             table3.append({"env": r["env"], "preference": r["preference"], "beta": r["beta"], "protocol": protocol,
                            "correlation": r["correlation"], "std": r["std"], "per_objective": r["per_objective"],
-                           "paper": r["paper"], "claim_holds": r["correlation"] >= r["paper"]})
+                           "paper": r["paper"], "demos": r["demos"], "claim_holds": r["correlation"] >= r["paper"]})
     return table1, table2, table3
 
 
@@ -130,7 +154,8 @@ def learning_curve_rows(results: pathlib.Path, name: str, baseline: str) -> list
             for preference, final in record["final_ewma_return"].get(env, {}).items():
                 last = last_of_env.get(preference, {})
                 rows.append({"env": env, "preference": json.loads(preference), "protocol": protocol,
-                             "seeds": record["seeds"], **{method.lower(): value for method, value in final.items()},
+                             "seeds": record["seeds"], "demos": demos_of(env, record),
+                             **{method.lower(): value for method, value in final.items()},
                              **{f"{method.lower()}_last": last.get(method) for method in final},
                              "claim_holds": paper.near_expert(final[moiq], final[baseline]),
                              "claim_holds_last": paper.near_expert(last[moiq], last[baseline]) if last else None})
@@ -149,7 +174,7 @@ def transfer_rows(results: pathlib.Path) -> list[dict]:
             expert = record[env]["expert_hypervolume"]
             for beta, volumes in record[env]["hypervolume_per_seed"].items():
                 rows.append({"env": env, "beta": float(beta.removeprefix("beta=")), "protocol": protocol,
-                             "seeds": len(volumes), "hypervolume": round(float(np.mean(volumes)), 2),
+                             "seeds": len(volumes), "demos": demos_of(env, record), "hypervolume": round(float(np.mean(volumes)), 2),
                              "hypervolume_std": round(float(np.std(volumes)), 2), "expert_hypervolume": expert,
                              "ratio": round(float(np.mean(volumes)) / expert, 4)})
     return rows
@@ -158,18 +183,22 @@ def transfer_rows(results: pathlib.Path) -> list[dict]:
 def write_csv(path: pathlib.Path, rows: list[dict]) -> None:
     if rows:
         with open(path, "w", newline="") as f:
-            writer = csv.DictWriter(f, fieldnames=list(rows[0]))
+            writer = csv.DictWriter(f, fieldnames=list(dict.fromkeys(k for r in rows for k in r)))
             writer.writeheader()
             writer.writerows(rows)
 
 
 def markdown(title: str, rows: list[dict], columns: list[str]) -> list[str]:
-    """One markdown table of ``rows`` (a cell of None, a value not recorded, is shown as "n/a")."""
+    """One markdown table of ``rows`` (a cell of None, a value not recorded, is shown as "n/a") and the count of
+    rows where the paper's claim holds, over the rows not made from replaced demonstrations."""
     cell = lambda v: "n/a" if v is None else ("yes" if v is True else "no" if v is False else str(v))
     lines = [f"## {title}", "", "| " + " | ".join(columns) + " |", "|" + "---|" * len(columns)]
     lines += ["| " + " | ".join(cell(r.get(c)) for c in columns) + " |" for r in rows]
-    held = [r["claim_holds"] for r in rows if r.get("claim_holds") is not None]
-    return lines + (["", f"The paper's claim holds in {sum(held)} of {len(held)} rows checked."] if held else []) + [""]
+    held = [r["claim_holds"] for r in rows if r.get("claim_holds") is not None and r.get("demos") != "replaced"]
+    stale = sum(r.get("demos") == "replaced" for r in rows)
+    count = f"The paper's claim holds in {sum(held)} of {len(held)} rows checked" + (
+        f" (not counted: {stale} rows made from demonstrations since replaced)." if stale else ".")
+    return lines + (["", count] if held else []) + [""]
 
 
 def main() -> None:
@@ -191,28 +220,30 @@ def main() -> None:
     lines = ["# The paper's tables beside this project's measurements", "",
              "Written by `PYTHONPATH=. python experiments/paper_summary.py` from the committed outputs named in its",
              "docstring; `protocol` says which run each row comes from (cdst_moiq: `results/cdst_moiq/`, its tuned",
-             "config; cpu / cpu_recipe / paper: `experiments/paper_mujoco.py`'s protocols).", ""]
+             "config; cpu / cpu_recipe / paper: `experiments/paper_mujoco.py`'s protocols). `demos`: whether a MuJoCo",
+             "row was made from the committed demonstrations (`replaced`: from experts replaced since, so not counted",
+             "in the claims; n/a: the output does not say).", ""]
     lines += markdown("Table 1: best model's scalarised return (claim: within 10% of the expert)", table1,
                       ["env", "preference", "beta", "protocol", "moiq", "moiq_std", "expert", "ratio", "seeds",
-                       "paper_moiq", "paper_expert", "claim_holds"])
+                       "paper_moiq", "paper_expert", "demos", "claim_holds"])
     lines += markdown("Table 2: EWMA return at the end, beta 0 against 5 (claim: the paper's ordering; `_last`: mean "
                       "return over the last 20% of training, which the EWMA of a short run does not weigh alone)", table2,
                       ["env", "preference", "protocol", "beta0", "beta5", "beta0.5", "beta0_last", "beta5_last",
-                       "paper_beta0", "paper_beta5", "claim_holds"])
+                       "paper_beta0", "paper_beta5", "demos", "claim_holds"])
     lines += markdown("Table 3: Pearson correlation of recovered and true scalarised reward (claim: >= the paper's)",
                       table3, ["env", "preference", "beta", "protocol", "correlation", "std", "per_objective", "paper",
-                               "claim_holds"])
+                               "demos", "claim_holds"])
     moiq_columns = [f"moiq beta={beta:g}{end}" for end in ("", "_last") for beta in paper.MOIQ_BETAS]
     lines += markdown("Figure 2: EWMA return at the end, MOIQ against GAIL (claim: MOIQ at beta 5 within 10% of GAIL "
                       "or above; `_last`: mean return over the last 20% of training)", figure2,
-                      ["env", "preference", "protocol", "seeds", *moiq_columns, "gail", "gail_last", "claim_holds",
+                      ["env", "preference", "protocol", "seeds", *moiq_columns, "gail", "gail_last", "demos", "claim_holds",
                        "claim_holds_last"])
     lines += markdown("Figure 3: hypervolume of the transferred front over 19 preferences against the experts'",
                       figure3, ["env", "beta", "protocol", "seeds", "hypervolume", "hypervolume_std",
-                                "expert_hypervolume", "ratio"])
+                                "expert_hypervolume", "ratio", "demos"])
     lines += markdown("Figure 4: EWMA return at the end from 1 demonstration per preference, MOIQ against IQ-Learn "
                       "(claim: MOIQ at beta 5 within 10% of IQ-Learn or above)", figure4,
-                      ["env", "preference", "protocol", "seeds", *moiq_columns, "iq-learn", "iq-learn_last", "claim_holds",
+                      ["env", "preference", "protocol", "seeds", *moiq_columns, "iq-learn", "iq-learn_last", "demos", "claim_holds",
                        "claim_holds_last"])
     (out / "summary.md").write_text("\n".join(lines))
     print("\n".join(lines))

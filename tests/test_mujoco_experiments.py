@@ -154,6 +154,34 @@ def test_paper_summary_reads_every_table(outputs):
     assert all(f"## {name}" in summary for name in ("Table 2", "Figure 2", "Figure 3", "Figure 4"))
 
 
+def test_paper_summary_tells_rows_made_from_replaced_demonstrations():
+    """A row made from demonstrations replaced since is marked and left out of the claim count: by git where the
+    output names the commit that wrote it, else by its Table 1 expert returns against the committed demos'."""
+    sys.path.insert(0, str(ROOT / "experiments"))
+    import paper_mujoco as paper
+    import paper_summary
+
+    env = "mo-hopper"
+    preferences = paper.moiq_config(env).preferences
+    experts = paper.expert_returns(env)
+    rows = [{"env": env, "preference": list(w), "expert": round(float(experts[e] @ np.asarray(w)), 2)}
+            for e, w in enumerate(preferences)]
+    assert paper_summary.demos_of(env, {"rows": rows}) == "committed"
+    moved = [{**r, "expert": r["expert"] + 5.0} if e == 1 else r for e, r in enumerate(rows)]
+    assert paper_summary.demos_of(env, {"rows": moved}) == "replaced"
+    assert paper_summary.demos_of(env, {"rows": []}) is None
+    git = lambda *a: subprocess.run(["git", "-C", str(ROOT), *a], capture_output=True, text=True, check=False)
+    last_change = git("log", "-1", "--format=%H", "--", f"experiments/demos/{env}.npz").stdout.strip()
+    if last_change:  # a git checkout: the commit before the demonstrations' last change made them "replaced"
+        before = git("rev-parse", f"{last_change}^").stdout.strip()
+        assert paper_summary.demos_of(env, {"provenance": {"commit": before}, "rows": rows}) == "replaced"
+        assert paper_summary.demos_of(env, {"provenance": {"commit": last_change}, "rows": moved}) == "committed"
+    table = [{"claim_holds": True, "demos": "replaced"}, {"claim_holds": True, "demos": "committed"},
+             {"claim_holds": False, "demos": None}]
+    assert paper_summary.markdown("T", table, ["demos"])[-2] == (
+        "The paper's claim holds in 1 of 2 rows checked (not counted: 1 rows made from demonstrations since replaced).")
+
+
 def test_a_missing_run_is_trained_alone_and_a_foreign_one_refused(outputs):
     tmp_path, _ = outputs
     archive = tmp_path / "archive"
