@@ -264,6 +264,9 @@ def _record_sweep(run_dir: str, config: Config, values: dict, demos, digest: str
             json.dump(record, f, indent=1)
         return
     saved = _read_sweep(run_dir)
+    # Where the demonstrations file lies may change (another checkout of it); its contents are the inputs' digest.
+    for part in (saved, record):
+        part["config"] = {name: value for name, value in part["config"].items() if name != "demos"}
     for what, key in (("config", "config"), ("swept values", "values"), ("demonstrations", "inputs")):
         if saved[key] != record[key]:
             if key == "config":

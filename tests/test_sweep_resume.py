@@ -128,6 +128,39 @@ def test_a_sweep_cut_after_a_chunk_resumes_in_python(tmp_path):
     np.testing.assert_array_equal(resumed.runs["beta"], [0.0, 5.0])
 
 
+def test_a_sweep_resumes_from_its_demonstrations_moved_but_not_from_others(tmp_path):
+    """A cut sweep continues with its demonstrations file at another path (another checkout), and is refused with
+    a file of other demonstrations at the saved path's name."""
+    preferences = ((0.9, 0.1), (0.1, 0.9))
+    first = tmp_path / "checkout_a" / "d.npz"
+    first.parent.mkdir()
+    demos = moiq_jax.experts.oracle_demonstrations("cdst", preferences, num_demos=2, seed=0)
+    demos.save(first)
+    config = tuned("cdst", **{**SMALL, "total_steps": 600}, preferences=preferences, num_demos=2, demos=str(first))
+    run_dir = str(tmp_path / "sweep")
+
+    def crash_after_one_chunk(line):
+        if "steps 300:" in line:
+            raise Crash
+
+    with pytest.raises(Crash):
+        moiq_jax.sweep(config, run_dir=run_dir, log=crash_after_one_chunk, seed=[0])
+    moved = tmp_path / "checkout_b" / "d.npz"
+    moved.parent.mkdir()
+    shutil.copy(first, moved)
+    other = tmp_path / "checkout_c" / "d.npz"
+    other.parent.mkdir()
+    swapped = jax.tree.map(lambda x: x[::-1], demos)  # each expert's episodes under the other's preference
+    swapped.replace(preferences=demos.preferences).save(other)
+    with pytest.raises(ValueError, match="holds a sweep of other demonstrations"):
+        moiq_jax.sweep(config.replace(demos=str(other)), run_dir=run_dir, resume=True, log=None, seed=[0])
+    lines = []
+    resumed = moiq_jax.sweep(config.replace(demos=str(moved)), run_dir=run_dir, resume=True, log=lines.append,
+                             seed=[0])
+    assert [line.split("]")[1].split(":")[0] for line in lines] == [" steps 600"]  # the one chunk left
+    assert resumed.history["env_steps"][0, -1] == 600
+
+
 def test_resume_errors_are_clear(tmp_path, capsys):
     def error(*args):
         assert main(list(args)) == 2
