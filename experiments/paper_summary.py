@@ -201,6 +201,20 @@ def markdown(title: str, rows: list[dict], columns: list[str]) -> list[str]:
     return lines + (["", count] if held else []) + [""]
 
 
+def claims_by_protocol(rows: list[dict]) -> list[str]:
+    """Per protocol and beta: in how many settings (task, preference) the claim holds, over which tasks; rows
+    made from replaced demonstrations left out."""
+    groups: dict[tuple, list[dict]] = {}
+    for r in rows:
+        if r.get("demos") != "replaced":
+            groups.setdefault((r["protocol"], r["beta"]), []).append(r)
+    lines = ["| protocol | beta | settings where the claim holds | tasks |", "|---|---|---|---|"]
+    for (protocol, beta), group in groups.items():
+        tasks = ", ".join(dict.fromkeys(r["env"] for r in group))
+        lines.append(f"| {protocol} | {beta:g} | {sum(r['claim_holds'] for r in group)} of {len(group)} | {tasks} |")
+    return lines + [""]
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--results", default="results")
@@ -226,6 +240,7 @@ def main() -> None:
     lines += markdown("Table 1: best model's scalarised return (claim: within 10% of the expert)", table1,
                       ["env", "preference", "beta", "protocol", "moiq", "moiq_std", "expert", "ratio", "seeds",
                        "paper_moiq", "paper_expert", "demos", "claim_holds"])
+    lines += claims_by_protocol(table1)
     lines += markdown("Table 2: EWMA return at the end, beta 0 against 5 (claim: the paper's ordering; `_last`: mean "
                       "return over the last 20% of training, which the EWMA of a short run does not weigh alone)", table2,
                       ["env", "preference", "protocol", "beta0", "beta5", "beta0.5", "beta0_last", "beta5_last",

@@ -180,6 +180,10 @@ def test_paper_summary_tells_rows_made_from_replaced_demonstrations():
              {"claim_holds": False, "demos": None}]
     assert paper_summary.markdown("T", table, ["demos"])[-2] == (
         "The paper's claim holds in 1 of 2 rows checked (not counted: 1 rows made from demonstrations since replaced).")
+    table = [{**r, "env": env, "protocol": protocol, "beta": 0.5}
+             for r, env, protocol in zip(table, ("mo-ant", "mo-hopper", "mo-ant"), ("p", "p", "q"))]
+    assert paper_summary.claims_by_protocol(table)[2:4] == ["| p | 0.5 | 1 of 1 | mo-hopper |",
+                                                            "| q | 0.5 | 0 of 1 | mo-ant |"]
 
 
 def test_a_missing_run_is_trained_alone_and_a_foreign_one_refused(outputs):
