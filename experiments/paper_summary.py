@@ -96,8 +96,11 @@ def outputs_by_env(folder: pathlib.Path, name: str) -> dict[str, dict]:
 def env_rows(folder: pathlib.Path, name: str) -> list[dict]:
     """The rows of output ``name`` under ``folder``, each task's from its source (``outputs_by_env``), each with
     ``demos``: whether it was made from the committed demonstrations (``demos_of``)."""
-    return [{**r, "demos": demos_of(env, record)} for env, record in outputs_by_env(folder, name).items()
-            for r in record.get("rows", []) if r["env"] == env]
+    rows = []
+    for env, record in outputs_by_env(folder, name).items():
+        demos = demos_of(env, record)
+        rows += [{**r, "demos": demos} for r in record.get("rows", []) if r["env"] == env]
+    return rows
 
 
 def demos_of(env: str, record: dict) -> str | None:
@@ -114,8 +117,9 @@ def demos_of(env: str, record: dict) -> str | None:
     rows = [r for r in record.get("rows", []) if r.get("env") == env and "expert" in r]
     if not rows:
         return None
-    experts = paper.expert_returns(env) @ np.asarray(paper_preferences(env)).T  # [E, E]: expert e under preference f
-    expert_of = {tuple(w): experts[e, e] for e, w in enumerate(paper_preferences(env))}
+    preferences = np.asarray(paper_preferences(env))
+    experts = (paper.expert_returns(env) * preferences).sum(1)  # [E]: each expert under its own preference
+    expert_of = dict(zip(map(tuple, preferences.tolist()), experts))
     return "committed" if all(abs(r["expert"] - expert_of[tuple(r["preference"])]) <= 0.01 + 1e-6 * abs(r["expert"])
                               for r in rows) else "replaced"
 
@@ -151,10 +155,11 @@ def learning_curve_rows(results: pathlib.Path, name: str, baseline: str) -> list
         protocol = folder.name.removeprefix("mujoco_")
         for env, record in outputs_by_env(folder, name).items():
             last_of_env = record.get("final_last_window_return", {}).get(env, {})
+            demos = demos_of(env, record)
             for preference, final in record["final_ewma_return"].get(env, {}).items():
                 last = last_of_env.get(preference, {})
                 rows.append({"env": env, "preference": json.loads(preference), "protocol": protocol,
-                             "seeds": record["seeds"], "demos": demos_of(env, record),
+                             "seeds": record["seeds"], "demos": demos,
                              **{method.lower(): value for method, value in final.items()},
                              **{f"{method.lower()}_last": last.get(method) for method in final},
                              "claim_holds": paper.near_expert(final[moiq], final[baseline]),
@@ -171,10 +176,10 @@ def transfer_rows(results: pathlib.Path) -> list[dict]:
         for env, record in outputs_by_env(folder, "figure3").items():
             if env not in record:
                 continue
-            expert = record[env]["expert_hypervolume"]
+            expert, demos = record[env]["expert_hypervolume"], demos_of(env, record)
             for beta, volumes in record[env]["hypervolume_per_seed"].items():
                 rows.append({"env": env, "beta": float(beta.removeprefix("beta=")), "protocol": protocol,
-                             "seeds": len(volumes), "demos": demos_of(env, record), "hypervolume": round(float(np.mean(volumes)), 2),
+                             "seeds": len(volumes), "demos": demos, "hypervolume": round(float(np.mean(volumes)), 2),
                              "hypervolume_std": round(float(np.std(volumes)), 2), "expert_hypervolume": expert,
                              "ratio": round(float(np.mean(volumes)) / expert, 4)})
     return rows
