@@ -309,6 +309,20 @@ def best_model_returns(result: Result, beta: float, episodes: int) -> np.ndarray
                      for r in runs_of(result, beta)])
 
 
+def each_preferences_best_returns(result: Result, beta: float, episodes: int) -> np.ndarray | None:
+    """``[seeds, E, d]`` mean vector returns over ``episodes`` of each ``beta`` run's best actor *of each
+    preference* (``Result.best_actor_per_expert``: the model a per-preference reading of "the best model" takes),
+    each at its own preference; None when the runs kept no such actors (trained before they were kept)."""
+    if result.best_actor_per_expert is None:
+        return None
+    config = result.config
+    rows = []
+    for run in map(result.run, runs_of(result, beta)):
+        rows.append([moiq_jax.evaluate(run.expert_best_params(e), config.env, [w], episodes=episodes)[0]
+                     for e, w in enumerate(config.preferences)])
+    return np.asarray(rows)
+
+
 def best_model_correlations(result: Result, beta: float) -> tuple[np.ndarray, np.ndarray]:
     """``([seeds, E], [seeds, E, d])`` the recovered reward's Pearson correlations with the true one on the
     demonstrations (scalarised, and per objective) at each ``beta`` run's best model

@@ -3,7 +3,9 @@ this project's, ``paper_mujoco.MOIQ_BETAS``) per task and preference, over 100 e
 seed (mean, spread and each seed's), next to the experts' and the paper's. Beside it, from the runs' own
 evaluations during training (a few episodes each): each preference's best evaluation (``own_best``: the
 preferences of one model peak at different times) and the mean over the last 20% of training (``last_window``:
-where the run ends).
+where the run ends). For runs that kept each preference's best actor, the same 100-episode evaluation of
+that actor at its preference (``each_best``): a per-preference reading of "the best model", one model per row,
+reported beside the one-model reading that the counts use.
 
     PYTHONPATH=. python experiments/table1.py [--envs mo-hopper ...] [--seeds 3] [--betas 5 0.5] [--protocol PROTOCOL]
         [--quick] [--no-train] [--out DIR]
@@ -44,6 +46,8 @@ def main() -> None:
         for beta in betas:
             returns = paper.best_model_returns(result, beta, episodes)  # [seeds, E, d]
             scalar = (returns * preferences).sum(-1)
+            each = paper.each_preferences_best_returns(result, beta, episodes)
+            each_scalar = None if each is None else (each * preferences).sum(-1)
             steps, evaluations = paper.evaluation_returns(result, beta)  # [seeds, evals, E]
             own_best, last_window = evaluations.max(1).mean(0), paper.last_window_mean(steps, evaluations).mean(0)
             for e, w in enumerate(preferences):
@@ -56,9 +60,12 @@ def main() -> None:
                              "near_expert": paper.near_expert(scalar[:, e].mean(), expert[e]),
                              "own_best": round(float(own_best[e]), 2), "last_window": round(float(last_window[e]), 2),
                              "paper_moiq": paper.PAPER_TABLE1[env][e], "seeds": int(scalar.shape[0]),
-                             "episodes": episodes})
+                             "episodes": episodes, **each_best_columns(each_scalar, e, expert[e])})
     reached = {f"beta={beta:g}": sum(r["near_expert"] for r in rows if r["beta"] == beta) for beta in betas}
-    paper.write_outputs(out, "table1", args, rows, settings_at_90_percent_of_expert=reached)
+    each_reached = {f"beta={beta:g}": sum(r["each_best_near_expert"] for r in rows if r["beta"] == beta)
+                    for beta in betas if all(r["each_best_mean"] is not None for r in rows if r["beta"] == beta)}
+    paper.write_outputs(out, "table1", args, rows, settings_at_90_percent_of_expert=reached,
+                        settings_at_90_percent_with_each_preferences_best_actor=each_reached)
 
     fig, ax = plt.subplots(figsize=(max(6, len(rows)), 3.6), layout="constrained")
     ax.bar(range(len(rows)), [r["ratio_to_expert"] for r in rows], yerr=[r["moiq_std"] / abs(r["expert"]) for r in rows])
@@ -69,13 +76,25 @@ def main() -> None:
     fig.savefig(out / "table1.png", dpi=120)
 
     print(f"{'env':<15} {'preference':<18} {'beta':>4} {'MOIQ':>16} {'expert':>9} {'ratio':>6} {'paper MOIQ':>10}"
-          f" {'own best':>9} {'last 20%':>9}")
+          f" {'own best':>9} {'last 20%':>9} {'each best (ratio)':>24}")
     for r in rows:
+        each = "-" if r["each_best_mean"] is None else \
+            f"{r['each_best_mean']:.1f} ± {r['each_best_std']:.1f} ({r['each_best_ratio_to_expert']:.2f})"
         print(f"{r['env']:<15} {r['preference']!s:<18} {r['beta']:4g} {r['moiq_mean']:9.1f} ± {r['moiq_std']:5.1f} "
               f"{r['expert']:9.1f} {r['ratio_to_expert']:6.2f} {r['paper_moiq']:10} {r['own_best']:9.1f}"
-              f" {r['last_window']:9.1f}")
+              f" {r['last_window']:9.1f} {each:>24}")
     for beta, count in reached.items():
-        print(f"{beta}: settings within 10% of the expert's return: {count} of {len(rows) // len(reached)}")
+        print(f"{beta}: settings within 10% of the expert's return: {count} of {len(rows) // len(reached)}"
+              + (f" (each preference's best actor: {each_reached[beta]})" if beta in each_reached else ""))
+
+
+def each_best_columns(each_scalar: np.ndarray | None, e: int, expert: float) -> dict:
+    """Row ``e``'s columns of each preference's best actor (``[seeds, E]`` scalarised returns; None: not kept)."""
+    if each_scalar is None:
+        return dict.fromkeys(["each_best_mean", "each_best_std", "each_best_ratio_to_expert", "each_best_near_expert"])
+    mean = float(each_scalar[:, e].mean())
+    return {"each_best_mean": round(mean, 2), "each_best_std": round(float(each_scalar[:, e].std()), 2),
+            "each_best_ratio_to_expert": round(mean / expert, 3), "each_best_near_expert": paper.near_expert(mean, expert)}
 
 
 if __name__ == "__main__":

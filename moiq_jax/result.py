@@ -21,7 +21,12 @@ class Result:
     A sweep's result has a leading run axis on history, params and best_return, and ``runs``: each swept
     name (``seed``, ``beta``...) -> its value per run; a sweep over preference sets adds ``set`` (its index)
     and ``preferences`` ``[runs, E, d]`` (the run's labels, as ``preferences`` then is). ``extras``: what only one algorithm has, as it gives them
-    (ADMM: ``optimal_return [E]`` and ``transfer``, the 19 sweep preferences' results with a seed axis)."""
+    (ADMM: ``optimal_return [E]`` and ``transfer``, the 19 sweep preferences' results with a seed axis).
+
+    One model for all experts (moiq) also keeps, per expert, the actor of that expert's
+    best scalarised evaluation return (``best_actor_per_expert``, expert axis after any run axis) and that
+    return (``best_return_per_expert [E]``): the model a per-preference reading of "the best model" takes.
+    None where each expert has its own model (its ``best_params`` are already that)."""
 
     config: Config
     preferences: np.ndarray
@@ -32,6 +37,8 @@ class Result:
     seconds: float = 0.0
     runs: dict[str, np.ndarray] | None = None
     extras: dict = dataclasses.field(default_factory=dict)
+    best_actor_per_expert: Any = None
+    best_return_per_expert: np.ndarray | None = None
 
     def run(self, index: int) -> Result:
         """Run ``index`` of a sweep, as the result of that one run."""
@@ -48,4 +55,18 @@ class Result:
         return dataclasses.replace(self, config=self.config.replace(**values), preferences=preferences,
                                    history=pick(self.history),
                                    final_params=pick(self.final_params), best_params=pick(self.best_params),
-                                   best_return=np.asarray(self.best_return)[index], runs=None)
+                                   best_return=np.asarray(self.best_return)[index], runs=None,
+                                   best_actor_per_expert=pick(self.best_actor_per_expert),
+                                   best_return_per_expert=pick(self.best_return_per_expert))
+
+    def expert_best_params(self, expert: int):
+        """The best model of expert ``expert`` (in the config's order) alone: ``best_params`` with that expert's
+        best actor, ``best_actor_per_expert[expert]`` (one run of one model for all experts)."""
+        import jax
+
+        if self.runs is not None:
+            raise ValueError("expert_best_params takes one run; take a sweep's run with run(index) first")
+        if self.best_actor_per_expert is None:
+            raise ValueError(f"this {self.config.algo} result keeps no per-expert best actor (one model per expert: "
+                             "its best_params are each expert's own; or a run saved before they were kept)")
+        return self.best_params.replace(actor=jax.tree_util.tree_map(lambda x: x[expert], self.best_actor_per_expert))

@@ -75,7 +75,8 @@ parameters in the config's expert order). ``demos``
 
     def in_config_order(state):
         return state.replace(best_params=trainer.to_config_order(state.best_params),
-                             learner=state.learner.replace(params=trainer.to_config_order(state.learner.params)))
+                             learner=state.learner.replace(params=trainer.to_config_order(state.learner.params)),
+                             **per_expert_in_order(state, trainer.setup["back"]))
 
     hook = None if on_chunk is None else (lambda state, history: on_chunk(in_config_order(state), history))
     state, history, seconds = run_chunks(one_run(trainer, config), run_dir=run_dir, resume=resume, log=log,
@@ -83,7 +84,31 @@ parameters in the config's expert order). ``demos``
     stacked = {k: np.stack([h[k] for h in history]) for k in history[0]}
     state = in_config_order(state)
     return Result(config, trainer.preferences, stacked, state.learner.params, state.best_params,
-                  np.asarray(state.best_return), seconds)
+                  np.asarray(state.best_return), seconds, **per_expert_best(state))
+
+
+def per_expert_in_order(state, back) -> dict:
+    """A one-model trainer state's per-expert best actors and returns with their experts put in the order
+    ``back`` gives (canonical -> config order); nothing for one model per expert."""
+    if state.best_actor_per_expert is None:
+        return {}
+    take = lambda x: jnp.take(x, back, axis=0)
+    return {"best_actor_per_expert": jax.tree_util.tree_map(take, state.best_actor_per_expert),
+            "best_return_per_expert": take(state.best_return_per_expert)}
+
+
+def per_expert_best(state) -> dict:
+    """``Result``'s per-expert best fields of a state already in the config's order."""
+    return as_result_fields({"best_actor_per_expert": state.best_actor_per_expert,
+                             "best_return_per_expert": state.best_return_per_expert})
+
+
+def as_result_fields(per_expert: dict) -> dict:
+    """``per_expert_in_order``'s dict (possibly empty, or None-valued) as ``Result`` keyword arguments."""
+    if per_expert.get("best_return_per_expert") is None:
+        return {}
+    return {"best_actor_per_expert": per_expert["best_actor_per_expert"],
+            "best_return_per_expert": np.asarray(per_expert["best_return_per_expert"])}
 
 
 def reward_correlations(params, config: Config, demos: Demonstrations | None = None, seed: int = 0) -> dict:
@@ -203,28 +228,28 @@ def sweep(config: Config, demos=None, run_dir: str | None = None, resume: bool =
         runs.pop("set")
         preferences = trainer.preferences
     def final_and_best(state, back):
-        """One run's final and best parameters, their experts in the config's order."""
+        """One run's final and best parameters and per-expert bests, their experts in the config's order."""
         return (trainer.to_config_order(state.learner.params, 0, back),
-                trainer.to_config_order(state.best_params, 0, back))
+                trainer.to_config_order(state.best_params, 0, back), per_expert_in_order(state, back))
 
     if run_dir is None:
         def one(key, hyper, setup):
             state, history = trainer.train_with(key, hyper, setup)
             return (*final_and_best(state, setup["back"]), state.best_return, history)
 
-        final, best, best_return, history = jax.jit(jax.vmap(one))(keys, hyper, setup)
+        final, best, per_expert, best_return, history = jax.jit(jax.vmap(one))(keys, hyper, setup)
         return Result(config, preferences, jax.device_get(history), final, best, np.asarray(best_return),
-                      time.perf_counter() - start, runs=runs)
+                      time.perf_counter() - start, runs=runs, **as_result_fields(per_expert))
     names = run_dir_names(runs)
     each = Result(config, preferences, {}, None, None, np.zeros(len(names)), runs=runs)  # for each run's config
     _record_sweep(run_dir, config, given_values, demos, _digest(setups), resume)
     state, history, _ = run_chunks(all_runs(trainer, config, keys, hyper, setup, names,
                                             [each.run(i).config for i in range(len(names))]),
                                    run_dir=run_dir, resume=resume, log=log)
-    final, best = jax.jit(jax.vmap(final_and_best))(state, setup["back"])
+    final, best, per_expert = jax.jit(jax.vmap(final_and_best))(state, setup["back"])
     history = {name: np.stack([h[name] for h in history], axis=1) for name in history[0]}
     return Result(config, preferences, history, final, best, np.asarray(state.best_return),
-                  time.perf_counter() - start, runs=runs)
+                  time.perf_counter() - start, runs=runs, **as_result_fields(per_expert))
 
 
 def run_dir_names(runs: dict) -> list[str]:

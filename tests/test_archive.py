@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import moiq_jax
-from moiq_jax.archive import PARAMS_FILE, RESULT_FILE, load_result, save_result, stack_results
+from moiq_jax.archive import PARAMS_FILE, PER_EXPERT_FILE, RESULT_FILE, load_result, save_result, stack_results
 from moiq_jax.config import tuned
 
 SMALL = {"total_steps": 600, "eval_interval": 300, "hidden_sizes": (8, 8), "batch_size": 8, "learning_starts": 60,
@@ -34,6 +34,9 @@ def test_saved_runs_join_into_the_sweep(sweep, tmp_path):
         np.testing.assert_array_equal(joined.history[name], values, err_msg=name)
         assert joined.history[name].dtype == np.asarray(values).dtype, name
     np.testing.assert_array_equal(joined.best_return, sweep.best_return)
+    np.testing.assert_array_equal(joined.best_return_per_expert, sweep.best_return_per_expert)
+    for x, y in zip(jax.tree.leaves(joined.best_actor_per_expert), jax.tree.leaves(sweep.best_actor_per_expert)):
+        np.testing.assert_array_equal(np.asarray(x), np.asarray(y))
     np.testing.assert_array_equal(joined.preferences, sweep.preferences)
     prefs = sweep.config.preferences
     np.testing.assert_allclose(moiq_jax.evaluate(joined.run(3).best_params, "cdst", prefs),
@@ -56,6 +59,13 @@ def test_joining_other_sweeps_or_unfinished_runs_is_an_error(sweep, tmp_path):
         stack_results([run, short])
     with pytest.raises(ValueError, match="joins single runs"):
         stack_results([sweep])
+    # a run saved before each expert's best actor was kept joins others without that reading
+    older = run.__class__(**{**run.__dict__, "best_actor_per_expert": None, "best_return_per_expert": None})
+    save_result(older, tmp_path / "older")
+    assert not (tmp_path / "older" / PER_EXPERT_FILE).exists()
+    joined = stack_results([load_result(tmp_path / "older"), sweep.run(1)])
+    assert joined.best_actor_per_expert is None and joined.best_return_per_expert is None
+    assert stack_results([sweep.run(0), sweep.run(1)]).best_return_per_expert.shape == (2, 3)
     with pytest.raises(FileNotFoundError, match="holds no saved result"):
         load_result(tmp_path)
     # a save cut before its record is written leaves no result behind

@@ -11,6 +11,7 @@ import pytest
 
 import moiq_jax
 from moiq_jax.algos.offpolicy import make_trainer
+from moiq_jax.config import tuned
 from moiq_jax.experts.loading import load_demonstrations
 from moiq_jax.runtime import pin_to_cores
 from moiq_jax.train import ALGORITHMS, validate
@@ -49,11 +50,35 @@ def test_evaluate_reproduces_the_best_models_training_evaluation(trained):
         moiq_jax.evaluate(result.best_params, moiq_jax.envs.make("cdst"), TINY.preferences)
 
 
+def test_each_experts_best_actor_is_the_actor_of_its_best_evaluation():
+    """One model for all experts keeps, per expert, the actor of that expert's best scalarised evaluation
+    (in the config's expert order, given here out of the canonical one): evaluating it reproduces that
+    evaluation, and it is the actor the run had after that chunk."""
+    config = tuned("cdst", total_steps=1200, eval_interval=200, hidden_sizes=(8, 8), batch_size=8, learning_starts=60,
+                   buffer_size=600, preferences=((0.1, 0.9), (0.5, 0.5), (0.9, 0.1)))
+    actors = []
+    result = moiq_jax.train(config, log=None, on_chunk=lambda state, _: actors.append(
+        jax.device_get(state.learner.params.actor)))
+    scalar = result.history["eval_scalar_return"]  # [evals, E]
+    np.testing.assert_array_equal(result.best_return_per_expert, scalar.max(0))
+    best = scalar.argmax(0)
+    assert len(set(best.tolist())) > 1  # the experts peak at different evaluations: the test tells them apart
+    for e in range(3):
+        params = result.expert_best_params(e)
+        for x, y in zip(jax.tree_util.tree_leaves(params.actor), jax.tree_util.tree_leaves(actors[best[e]])):
+            np.testing.assert_array_equal(x, y)
+        returns = moiq_jax.evaluate(params, "cdst", config.preferences)
+        np.testing.assert_allclose(returns[e], result.history["eval_return"][best[e], e], rtol=1e-6)
+
+
 def test_iq_learn_trains_one_model_per_expert_without_penalty(demos):
     result = moiq_jax.train(TINY.replace(algo="iq_learn"), demos, log=None)
     assert result.history["iq_loss"].shape == (2, 3)
     assert "penalty" not in result.history
     assert result.final_params.log_alpha.shape == (3, 1)  # three models of one expert each
+    assert result.best_actor_per_expert is None  # each model's best_params are its expert's own
+    with pytest.raises(ValueError, match="keeps no per-expert best actor"):
+        result.expert_best_params(0)
 
 
 def _best_evaluation(result):
@@ -123,6 +148,7 @@ def test_sweep_equals_separate_runs(demos, swept):
         np.testing.assert_allclose(swept.history["critic_loss"][run], history["critic_loss"], rtol=1e-4, atol=1e-5)
         np.testing.assert_allclose(swept.history["eval_return"][run], history["eval_return"], rtol=1e-4, atol=1e-4)
         np.testing.assert_allclose(swept.best_return[run], state.best_return, rtol=1e-5)
+        np.testing.assert_allclose(swept.best_return_per_expert[run], state.best_return_per_expert, rtol=1e-5)
     assert not np.allclose(swept.history["critic_loss"][0], swept.history["critic_loss"][1])
 
 

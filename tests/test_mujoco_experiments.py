@@ -47,7 +47,8 @@ def test_one_sweep_serves_every_script(outputs):
     kept = tmp_path / "cache" / "quick" / "runs" / "mo-halfcheetah-moiq"
     assert sorted(p.name for p in kept.iterdir()) == [f"beta{b}-seed{s}" for b in ("0", "0.5", "5") for s in (0, 1)]
     for run in kept.iterdir():  # small files only, with the demonstrations' digest
-        assert sorted(p.name for p in run.iterdir()) == ["best_params.npz", "demos.sha256", "history.npz", "result.json"]
+        assert sorted(p.name for p in run.iterdir()) == ["best_actor_per_expert.npz", "best_params.npz", "demos.sha256",
+                                                         "history.npz", "result.json"]
         assert sum(p.stat().st_size for p in run.iterdir()) < 200_000
 
 
