@@ -82,6 +82,14 @@ def test_tables_and_figure_files(outputs):
         late = history[0]["env_steps"] > 0.8 * history[0]["env_steps"][-1]
         assert [float(r["own_best"]) for r in beta_rows] == pytest.approx(evaluations.max(1).mean(0), abs=0.01)
         assert [float(r["last_window"]) for r in beta_rows] == pytest.approx(evaluations[:, late].mean((0, 1)), abs=0.01)
+        for seed, h in zip((0, 1), history):  # each preference's best actor was kept at its best evaluation
+            record = json.loads((kept / f"beta{beta}-seed{seed}" / "result.json").read_text())
+            assert record["best_return_per_expert"] == pytest.approx(h["eval_scalar_return"].max(0), abs=1e-4)
+    table1 = json.loads((tmp_path / "mujoco_quick" / "table1" / "table1.json").read_text())
+    for r in table1["rows"]:  # the per-preference reading beside the one-model one
+        assert r["each_best_ratio_to_expert"] == pytest.approx(r["each_best_mean"] / r["expert"], rel=0.02, abs=2e-3)
+    assert table1["settings_at_90_percent_with_each_preferences_best_actor"] == {
+        f"beta={b}": sum(r["each_best_near_expert"] for r in table1["rows"] if r["beta"] == float(b)) for b in ("5", "0.5")}
     table2 = json.loads((tmp_path / "mujoco_quick" / "table2" / "table2.json").read_text())
     assert table2["settings_where_beta5_beats_beta0"] == sum(r["beta5"] > r["beta0"] for r in table2["rows"])
     for beta in ("0", "5", "0.5"):  # the last-20% column, recomputed from the kept runs' evaluations
