@@ -29,6 +29,7 @@ from flax import struct
 from moiq_jax import replay
 from moiq_jax.algos import actor_critic
 from moiq_jax.algos.adoption import adopt_between_preferences
+from moiq_jax.algos.best_models import initial_best, keep_best
 from moiq_jax.config import Config
 from moiq_jax.envs.wrappers import AutoReset, DoneOnAbsorption, VmapWrapper
 from moiq_jax.evaluate import preference_returns
@@ -105,9 +106,7 @@ class RunnerState:
     best_params: Any
     best_return: jax.Array  # mean scalarised evaluation return of best_params
     extra: Any = None  # the algorithm's Extra state, leading expert axis
-    # One model for all experts: for each expert, the actor of its best scalarised evaluation return (leading
-    # expert axis) and that return; None for one model per expert, whose best_params are each expert's own.
-    best_actor_per_expert: Any = None
+    best_actor_per_expert: Any = None  # one model for all experts: each one's best actor (best_models), else None
     best_return_per_expert: Any = None
 
 
@@ -196,11 +195,8 @@ def make_trainer(config: Config, algorithm: Algorithm, demos: Demonstrations | N
         if extra_init:
             key, extra_key = jax.random.split(key)
             extra = extra_init(extra_key, prefs.shape[0])
-        per_expert = None if algorithm.one_model_per_expert else (
-            jax.tree_util.tree_map(lambda x: jnp.stack([x] * prefs.shape[0]), learner.params.actor),
-            jnp.full(prefs.shape[:1], -jnp.inf))
-        return RunnerState(learner, buffers, env_state, key, jnp.zeros((), jnp.int32),
-                           learner.params, jnp.full((), -jnp.inf), extra, *(per_expert or (None, None)))
+        return RunnerState(learner, buffers, env_state, key, jnp.zeros((), jnp.int32), extra=extra,
+                           **initial_best(learner.params, prefs.shape[0], not algorithm.one_model_per_expert))
 
     def env_iteration(state: RunnerState, hyper, expert_data, prefs):
         key, act_key, random_key, update_key = jax.random.split(state.key, 4)
@@ -250,17 +246,7 @@ def make_trainer(config: Config, algorithm: Algorithm, demos: Demonstrations | N
         params = state.learner.params
         returns = preference_returns(nets, params.actor, env, prefs, keys[1], c.eval_episodes).mean(axis=1)
         scalar = jnp.sum(returns * prefs, axis=-1)
-        score = jnp.mean(scalar)
-        better = score > state.best_return
-        best = jax.tree_util.tree_map(lambda new, old: jnp.where(better, new, old), params, state.best_params)
-        state = state.replace(key=key, best_params=best, best_return=jnp.maximum(score, state.best_return))
-        if state.best_actor_per_expert is not None:
-            better_each = scalar > state.best_return_per_expert
-            state = state.replace(
-                best_actor_per_expert=jax.tree_util.tree_map(
-                    lambda new, old: jnp.where(better_each.reshape((-1,) + (1,) * new.ndim), new[None], old),
-                    params.actor, state.best_actor_per_expert),
-                best_return_per_expert=jnp.maximum(scalar, state.best_return_per_expert))
+        state = keep_best(state.replace(key=key), params, scalar)
         metrics = {**metrics, "eval_return": returns, "eval_scalar_return": scalar, "env_steps": state.env_steps}
         if reward_metrics:
             metrics.update(reward_metrics(params, state.extra, expert_data, prefs, keys[0]))
