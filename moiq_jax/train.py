@@ -84,7 +84,9 @@ parameters in the config's expert order). ``demos``
     stacked = {k: np.stack([h[k] for h in history]) for k in history[0]}
     state = in_config_order(state)
     return Result(config, trainer.preferences, stacked, state.learner.params, state.best_params,
-                  np.asarray(state.best_return), seconds, **per_expert_best(state))
+                  np.asarray(state.best_return), seconds,
+                  **as_result_fields({"best_actor_per_expert": state.best_actor_per_expert,
+                                      "best_return_per_expert": state.best_return_per_expert}))
 
 
 def per_expert_in_order(state, back) -> dict:
@@ -97,14 +99,9 @@ def per_expert_in_order(state, back) -> dict:
             "best_return_per_expert": take(state.best_return_per_expert)}
 
 
-def per_expert_best(state) -> dict:
-    """``Result``'s per-expert best fields of a state already in the config's order."""
-    return as_result_fields({"best_actor_per_expert": state.best_actor_per_expert,
-                             "best_return_per_expert": state.best_return_per_expert})
-
-
 def as_result_fields(per_expert: dict) -> dict:
-    """``per_expert_in_order``'s dict (possibly empty, or None-valued) as ``Result`` keyword arguments."""
+    """Per-expert best actors and returns (a dict possibly empty or None-valued, experts in the config's order)
+    as ``Result`` keyword arguments."""
     if per_expert.get("best_return_per_expert") is None:
         return {}
     return {"best_actor_per_expert": per_expert["best_actor_per_expert"],
