@@ -40,10 +40,11 @@ def main() -> None:
 
     rows = []
     for env in args.envs:
-        result = paper.task_sweep(env, args, betas=sweep_betas)
-        preferences = np.asarray(result.config.preferences)
-        expert = (paper.expert_returns(env) * preferences).sum(-1)
-        for beta in betas:
+        paper.task_sweep(env, args, betas=sweep_betas)  # trains the runs not kept yet, each beta's seeds at once
+        for beta in betas:  # one beta's runs at a time: the per-preference reading needs only theirs to keep it
+            result = paper.task_sweep(env, args, betas=(beta,))
+            preferences = np.asarray(result.config.preferences)
+            expert = (paper.expert_returns(env) * preferences).sum(-1)
             returns = paper.best_model_returns(result, beta, episodes)  # [seeds, E, d]
             scalar = (returns * preferences).sum(-1)
             each = paper.each_preferences_best_returns(result, beta, episodes)

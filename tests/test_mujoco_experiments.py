@@ -226,6 +226,28 @@ def test_a_missing_run_is_trained_alone_and_a_foreign_one_refused(outputs):
     assert "beta5-seed0 holds a run trained on other demonstrations" in error
 
 
+def test_table1_reads_each_preferences_best_actor_for_the_betas_whose_runs_kept_it(outputs):
+    """Runs saved before each preference's best actor was kept, beside newer ones of another beta: the
+    per-preference reading is still given for the beta whose runs all kept it, and nothing else changes."""
+    tmp_path, _ = outputs
+    archive = tmp_path / "archive_mixed"
+    shutil.copytree(tmp_path / "cache" / "quick" / "runs", archive)
+    for seed in (0, 1):  # beta 5's runs as saved before they kept it
+        folder = archive / "mo-halfcheetah-moiq" / f"beta5-seed{seed}"
+        (folder / "best_actor_per_expert.npz").unlink()
+        record = json.loads((folder / "result.json").read_text())
+        (folder / "result.json").write_text(json.dumps({**record, "best_return_per_expert": None}))
+    run("table1.py", tmp_path, "--archive", str(archive), "--no-train", "--out", str(tmp_path / "mixed"))
+    mixed = json.loads((tmp_path / "mixed" / "table1.json").read_text())
+    full = json.loads((tmp_path / "mujoco_quick" / "table1" / "table1.json").read_text())
+    assert [r["beta"] for r in mixed["rows"]] == [r["beta"] for r in full["rows"]] == [5.0] * 3 + [0.5] * 3
+    for r, f in zip(mixed["rows"], full["rows"]):
+        assert r["moiq_mean"] == pytest.approx(f["moiq_mean"], abs=0.01)  # the one model's reading as before
+        expected = None if r["beta"] == 5.0 else pytest.approx(f["each_best_mean"], abs=0.01)
+        assert r["each_best_mean"] == expected
+    assert list(mixed["settings_at_90_percent_with_each_preferences_best_actor"]) == ["beta=0.5"]
+
+
 def test_run_summary_reads_what_the_runs_recorded(outputs):
     """run_summary.py: per run and preference, the model chosen on the mean (the trainer's best), each
     preference's own best, the last 20% and the penalty's peak, from the kept runs' metrics."""
