@@ -141,7 +141,8 @@ def mujoco_rows(results: pathlib.Path) -> tuple[list[dict], list[dict], list[dic
                            "claim_holds": (r["beta5"] > r["beta0"]) == paper_better})
         for r in env_rows(folder, "table3"):
             table3.append({"env": r["env"], "preference": r["preference"], "beta": r["beta"], "protocol": protocol,
-                           "correlation": r["correlation"], "std": r["std"], "per_objective": [round(float(c), 3) for c in r["per_objective"]],
+                           "correlation": r["correlation"], "std": r["std"],
+                           "per_objective": [round(float(c), 3) for c in r["per_objective"]],
                            "paper": r["paper"], "demos": r["demos"], "claim_holds": r["correlation"] >= r["paper"]})
     return table1, table2, table3
 
