@@ -333,6 +333,15 @@ def best_model_correlations(result: Result, beta: float) -> tuple[np.ndarray, np
             np.stack([c["reward_correlation_objectives"] for c in per_run]))
 
 
+def best_model_rollout_correlations(result: Result, beta: float, episodes: int) -> dict[str, np.ndarray]:
+    """``moiq_jax.rollout_reward_correlations`` at each ``beta`` run's best model, stacked over seeds: the
+    recovered and true returns' correlation across the policy's own ``episodes`` (IQ-Learn's code's measure),
+    ``episode_reward_correlation`` ``[seeds, E]`` and the others."""
+    per_run = [moiq_jax.rollout_reward_correlations(run.best_params, run.config, episodes)
+               for run in map(result.run, runs_of(result, beta))]
+    return {k: np.stack([c[k] for c in per_run]) for k in per_run[0]}
+
+
 def expert_returns(env: str) -> np.ndarray:
     """``[E, d]`` the committed demonstrations' mean vector returns."""
     return moiq_jax.Demonstrations.load(DEMOS / f"{env}.npz").mean_returns()

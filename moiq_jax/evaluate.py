@@ -50,6 +50,27 @@ def episode_returns(env: Env, policy: Policy, key: jax.Array, num_episodes: int)
     return run(key)
 
 
+def episode_transitions(env: Env, policy: Policy, key: jax.Array, num_episodes: int) -> dict[str, jax.Array]:
+    """Jittable: every step of ``num_episodes`` episodes run side by side to the time limit, as arrays
+    ``[num_episodes, env.episode_length, ...]``: ``obs``, ``action``, ``next_obs``, ``reward`` (true vector
+    reward), ``done`` (terminated) and ``alive`` (the step belongs to the episode: no earlier step was done or
+    truncated). Summing ``reward`` over the ``alive`` steps gives ``episode_returns``' returns."""
+    batched = VmapWrapper(env, num_episodes)
+    reset_key, act_key = jax.random.split(key)
+
+    def body(carry, step_key):
+        state, alive = carry
+        action = jax.vmap(policy)(jax.random.split(step_key, num_episodes), state.obs)
+        nxt = batched.step(state, action)
+        step = {"obs": state.obs, "action": action, "next_obs": nxt.obs, "reward": nxt.reward, "done": nxt.done,
+                "alive": alive}
+        return (nxt, alive & ~(nxt.done | nxt.truncated)), step
+
+    init = (batched.reset(reset_key), jnp.ones((num_episodes,), bool))
+    _, steps = jax.lax.scan(body, init, jax.random.split(act_key, env.episode_length))
+    return jax.tree_util.tree_map(lambda x: jnp.swapaxes(x, 0, 1), steps)
+
+
 def pearson(x: jax.Array, y: jax.Array, mask: jax.Array | None = None) -> jax.Array:
     """Pearson correlation of ``x`` and ``y`` (over the entries where ``mask`` is True, when given): how
     well a recovered reward matches the true one up to scale and offset."""

@@ -17,11 +17,10 @@ import jax.numpy as jnp
 import numpy as np
 
 from moiq_jax.algos import gail, iq_learn, moiq, moiq_preference_inference, preference_inference, sac
-from moiq_jax.algos.offpolicy import Algorithm, expert_transitions, make_trainer
+from moiq_jax.algos.offpolicy import Algorithm, make_trainer
 from moiq_jax.config import Config
 from moiq_jax.experts.demonstrations import Demonstrations
 from moiq_jax.experts.loading import load_demonstrations, match_preferences, take_experts
-from moiq_jax.networks import networks_of_config
 from moiq_jax.preferences import check_preferences
 from moiq_jax.result import Result
 from moiq_jax.runner import all_runs, one_run, run_chunks
@@ -106,30 +105,6 @@ def as_result_fields(per_expert: dict) -> dict:
         return {}
     return {"best_actor_per_expert": per_expert["best_actor_per_expert"],
             "best_return_per_expert": np.asarray(per_expert["best_return_per_expert"])}
-
-
-def reward_correlations(params, config: Config, demos: Demonstrations | None = None, seed: int = 0) -> dict:
-    """How well trained ``params`` (a ``Result``'s ``best_params`` or ``final_params``, experts in the
-    config's order) recover the true reward: ``reward_correlation`` ``[E]``, the Pearson correlation of the
-    recovered and the true reward on each expert's demonstrations, scalarised by its preference, and
-    ``reward_correlation_objectives`` ``[E, d]``, per objective; the same measure the training evaluations
-    record. ``demos`` (in the config's preference order) replace the configured ones; ``seed`` draws the
-    actions of V(s'). For the inverse soft-Q learners (moiq, iq_learn), whose reward is their critic's."""
-    algorithm = algorithm_of(config)
-    if not isinstance(algorithm, Algorithm) or algorithm.reward_metrics is None or algorithm.extra is not None:
-        raise ValueError(f"{config.algo} does not recover its reward from the critic; reward_correlations reads "
-                         "moiq's and iq_learn's")
-    env = config.make_env(absorbing=True)
-    data = {k: jnp.asarray(v) for k, v in expert_transitions(load_demonstrations(config, env) if demos is None
-                                                              else demos).items()}
-    nets = networks_of_config(config.offpolicy, env)
-    metrics = algorithm.reward_metrics(config, nets)
-    preferences = jnp.asarray(config.preferences, jnp.float32)
-    key = jax.random.PRNGKey(seed)
-    if algorithm.one_model_per_expert:  # one model per expert, on a leading model axis
-        per_model = jax.vmap(lambda p, d, w: metrics(p, None, jax.tree_util.tree_map(lambda x: x[None], d), w[None], key))
-        return {k: np.asarray(v[:, 0]) for k, v in jax.jit(per_model)(params, data, preferences).items()}
-    return {k: np.asarray(v) for k, v in jax.jit(lambda p: metrics(p, None, data, preferences, key))(params).items()}
 
 
 def run_grid(values: dict) -> dict[str, np.ndarray]:

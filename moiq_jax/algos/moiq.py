@@ -148,22 +148,32 @@ def critic_loss(critic_params, nets: Networks, params: Params, batches, preferen
     return jnp.sum(iq_losses) + beta * penalty, {**metrics, "penalty": penalty}
 
 
+def recovered_reward_fn(config, nets: Networks):
+    """``fn(params, data, preferences, key) -> [E, M, d]``: the recovered vector reward (the critic loss's own,
+    mean of the twins; V(s') from the target critic only when ``use_target``) on each expert's transitions
+    ``data`` (``[E, M, ...]``: obs, action, next_obs, done)."""
+
+    def rewards(params, data, prefs, key):
+        def one(data_i, preference, alpha, k):
+            r, _ = recovered_rewards(nets, params.critic, params, alpha, data_i, preference, k, config.gamma,
+                                     config.moiq.use_target)
+            return jnp.mean(r, 0)  # over the twins
+
+        return jax.vmap(one)(data, prefs, jnp.exp(params.log_alpha), jax.random.split(key, prefs.shape[0]))
+
+    return rewards
+
+
 def reward_correlations(config, nets: Networks):
-    """At each evaluation: the recovered reward's Pearson correlations with the true one on the
-    demonstrations, scalarised by the expert's preference (``reward_correlation``) and per objective
-    (``reward_correlation_objectives``, ``[E, d]``); the reward is the critic loss's own, with V(s') from the
-    target critic only when ``use_target``."""
+    """At each evaluation: the recovered reward's (``recovered_reward_fn``) Pearson correlations with the true
+    one on the demonstrations, scalarised by the expert's preference (``reward_correlation``) and per objective
+    (``reward_correlation_objectives``, ``[E, d]``)."""
+    rewards_of = recovered_reward_fn(config, nets)
 
     def metrics(params, extra, expert_data, prefs, key):
-        def correlation(data_i, preference, alpha, k):
-            rewards, _ = recovered_rewards(nets, params.critic, params, alpha, data_i, preference, k, config.gamma,
-                                           config.moiq.use_target)
-            rewards = jnp.mean(rewards, 0)  # over the twins
-            per_objective = jax.vmap(pearson, in_axes=(1, 1))(rewards, data_i["true_reward"])
-            return pearson(rewards @ preference, data_i["true_reward"] @ preference), per_objective
-
-        scalar, per_objective = jax.vmap(correlation)(expert_data, prefs, jnp.exp(params.log_alpha),
-                                                      jax.random.split(key, prefs.shape[0]))
+        rewards, true = rewards_of(params, expert_data, prefs, key), expert_data["true_reward"]
+        scalar = jax.vmap(pearson)(jnp.einsum("emd,ed->em", rewards, prefs), jnp.einsum("emd,ed->em", true, prefs))
+        per_objective = jax.vmap(jax.vmap(pearson, in_axes=(1, 1)))(rewards, true)
         return {"reward_correlation": scalar, "reward_correlation_objectives": per_objective}
 
     return metrics

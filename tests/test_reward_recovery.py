@@ -1,0 +1,65 @@
+"""The recovered reward's correlation with the true one along the policy's own episodes (the measure of
+IQ-Learn's code): it reads the episodes ``evaluate`` runs, in the env the learner trained in, and is NaN where
+the episodes do not vary."""
+
+import jax
+import numpy as np
+import optax
+import pytest
+
+import moiq_jax
+from moiq_jax.algos import actor_critic
+from moiq_jax.networks import networks_of_config
+
+HOPPER = moiq_jax.Config(env="mo-hopper", preferences=((0.8, 0.1, 0.1), (0.1, 0.8, 0.1), (0.1, 0.1, 0.8)),
+                         hidden_sizes=(16,))
+
+
+def fresh_params(config, seed=0):
+    """Untrained MOIQ parameters for ``config`` (a policy that falls early on the hopper)."""
+    env = config.make_env(absorbing=True)
+    nets = networks_of_config(config.offpolicy, env)
+    adam = optax.adam(1e-3)
+    learner = actor_critic.init_learner(nets, actor_critic.Optimisers(adam, adam, adam), jax.random.PRNGKey(seed),
+                                        env.observation_size, env.action_size,
+                                        np.asarray(config.preferences, np.float32), 0.2)
+    return learner.params
+
+
+@pytest.fixture(scope="module")
+def hopper():
+    params = fresh_params(HOPPER)
+    return params, moiq_jax.rollout_reward_correlations(params, HOPPER, episodes=6, seed=3)
+
+
+def test_rollout_correlations_read_evaluates_episodes_and_correlate_their_returns(hopper):
+    params, measured = hopper
+    prefs = np.asarray(HOPPER.preferences)
+    assert measured["episode_returns"].shape == measured["recovered_episode_returns"].shape == (3, 6)
+    evaluated = moiq_jax.evaluate(params, "mo-hopper", prefs, episodes=6, seed=3)  # [E, d] mean vector returns
+    np.testing.assert_allclose(measured["episode_returns"].mean(1), (evaluated * prefs).sum(1), rtol=1e-5)
+    assert np.ptp(measured["episode_returns"], axis=1).min() > 0  # random starts: the episodes differ
+    for e in range(3):
+        expected = np.corrcoef(measured["recovered_episode_returns"][e], measured["episode_returns"][e])[0, 1]
+        assert measured["episode_reward_correlation"][e] == pytest.approx(expected, abs=1e-9)
+    for name in ("episode_reward_correlation", "episode_reward_correlation_objectives", "step_reward_correlation"):
+        assert np.all(np.abs(measured[name]) <= 1)
+
+
+def test_without_absorbing_rollouts_the_episodes_end_at_termination(hopper):
+    """The learner that trained on episodes ending at termination is measured on them: the true returns are the
+    same (the absorbing state has no true reward), the recovered ones leave out the absorbing steps."""
+    params, measured = hopper
+    ending = moiq_jax.rollout_reward_correlations(params, HOPPER.replace(absorbing_rollouts=False), episodes=6, seed=3)
+    np.testing.assert_allclose(ending["episode_returns"], measured["episode_returns"], rtol=1e-6)
+    assert np.min(np.abs(ending["recovered_episode_returns"] - measured["recovered_episode_returns"])) > 1e-3
+
+
+def test_a_repeated_episode_has_no_correlation_and_other_learners_are_refused():
+    config = moiq_jax.Config(hidden_sizes=(8,))  # cdst: one start, a deterministic policy, one episode repeated
+    measured = moiq_jax.rollout_reward_correlations(fresh_params(config), config, episodes=3)
+    assert np.all(np.ptp(measured["episode_returns"], axis=1) == 0)
+    assert np.all(np.isnan(measured["episode_reward_correlation"]))
+    assert np.all(np.isnan(measured["episode_reward_correlation_objectives"]))
+    with pytest.raises(ValueError, match="gail does not recover its reward from the critic; rollout_reward_correlations"):
+        moiq_jax.rollout_reward_correlations(fresh_params(config), config.replace(algo="gail"))
