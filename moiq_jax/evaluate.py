@@ -15,59 +15,50 @@ from moiq_jax.envs.wrappers import VmapWrapper
 Policy = Callable[[jax.Array, jax.Array], jax.Array]  # (key, obs) -> action
 
 
+def _run_episodes(env: Env, policy: Policy, key: jax.Array, num_episodes: int, record: bool):
+    """``num_episodes`` episodes side by side to the time limit: ``({"returns", "lengths"}, steps)``, the steps
+    ``[episode_length, num_episodes, ...]`` when ``record``, else None."""
+    batched = VmapWrapper(env, num_episodes)
+    reset_key, act_key = jax.random.split(key)
+
+    def body(carry, step_key):
+        state, returns, lengths, alive = carry
+        action = jax.vmap(policy)(jax.random.split(step_key, num_episodes), state.obs)
+        nxt = batched.step(state, action)
+        step = None
+        if record:
+            step = {"obs": state.obs, "action": action, "next_obs": nxt.obs, "reward": nxt.reward, "done": nxt.done,
+                    "alive": alive}
+        returns = returns + alive[:, None] * nxt.reward
+        lengths = lengths + alive
+        alive = alive & ~(nxt.done | nxt.truncated)
+        return (nxt, returns, lengths, alive), step
+
+    init = (
+        batched.reset(reset_key),
+        jnp.zeros((num_episodes, env.reward_dim), jnp.float32),
+        jnp.zeros((num_episodes,), jnp.int32),
+        jnp.ones((num_episodes,), bool),
+    )
+    (_, returns, lengths, _), steps = jax.lax.scan(body, init, jax.random.split(act_key, env.episode_length))
+    return {"returns": returns, "lengths": lengths}, steps
+
+
 def episode_returns(env: Env, policy: Policy, key: jax.Array, num_episodes: int) -> dict[str, jax.Array]:
     """Run ``num_episodes`` episodes side by side (one per env copy) to their end.
 
     ``env`` must carry a time limit (``make`` adds one). Returns ``returns`` (num_episodes, reward_dim):
     undiscounted vector returns; ``lengths`` (num_episodes,): steps until done or truncated.
     """
-    horizon = env.episode_length
-    batched = VmapWrapper(env, num_episodes)
-
-    @jax.jit
-    def run(key):
-        reset_key, act_key = jax.random.split(key)
-        state = batched.reset(reset_key)
-
-        def body(carry, step_key):
-            state, returns, lengths, alive = carry
-            action = jax.vmap(policy)(jax.random.split(step_key, num_episodes), state.obs)
-            nxt = batched.step(state, action)
-            returns = returns + alive[:, None] * nxt.reward
-            lengths = lengths + alive
-            alive = alive & ~(nxt.done | nxt.truncated)
-            return (nxt, returns, lengths, alive), None
-
-        init = (
-            state,
-            jnp.zeros((num_episodes, env.reward_dim), jnp.float32),
-            jnp.zeros((num_episodes,), jnp.int32),
-            jnp.ones((num_episodes,), bool),
-        )
-        (_, returns, lengths, _), _ = jax.lax.scan(body, init, jax.random.split(act_key, horizon))
-        return {"returns": returns, "lengths": lengths}
-
-    return run(key)
+    return jax.jit(lambda k: _run_episodes(env, policy, k, num_episodes, record=False)[0])(key)
 
 
 def episode_transitions(env: Env, policy: Policy, key: jax.Array, num_episodes: int) -> dict[str, jax.Array]:
-    """Jittable: every step of ``num_episodes`` episodes run side by side to the time limit, as arrays
-    ``[num_episodes, env.episode_length, ...]``: ``obs``, ``action``, ``next_obs``, ``reward`` (true vector
-    reward), ``done`` (terminated) and ``alive`` (the step belongs to the episode: no earlier step was done or
-    truncated). Summing ``reward`` over the ``alive`` steps gives ``episode_returns``' returns."""
-    batched = VmapWrapper(env, num_episodes)
-    reset_key, act_key = jax.random.split(key)
-
-    def body(carry, step_key):
-        state, alive = carry
-        action = jax.vmap(policy)(jax.random.split(step_key, num_episodes), state.obs)
-        nxt = batched.step(state, action)
-        step = {"obs": state.obs, "action": action, "next_obs": nxt.obs, "reward": nxt.reward, "done": nxt.done,
-                "alive": alive}
-        return (nxt, alive & ~(nxt.done | nxt.truncated)), step
-
-    init = (batched.reset(reset_key), jnp.ones((num_episodes,), bool))
-    _, steps = jax.lax.scan(body, init, jax.random.split(act_key, env.episode_length))
+    """Jittable: every step of ``num_episodes`` episodes run side by side to the time limit (those of
+    ``episode_returns`` for the same key), as arrays ``[num_episodes, env.episode_length, ...]``: ``obs``,
+    ``action``, ``next_obs``, ``reward`` (true vector reward), ``done`` (terminated) and ``alive`` (the step
+    belongs to the episode: no earlier step was done or truncated)."""
+    _, steps = _run_episodes(env, policy, key, num_episodes, record=True)
     return jax.tree_util.tree_map(lambda x: jnp.swapaxes(x, 0, 1), steps)
 
 
