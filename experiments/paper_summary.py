@@ -62,7 +62,8 @@ def cdst_rows(results: pathlib.Path) -> tuple[list[dict], list[dict]]:
     for e, w in enumerate(CDST_PREFERENCES):
         final = {beta: float(paper.ewma(curves[f"MOIQ beta={beta}/eval_scalar_return"], axis=1)[:, -1, e].mean())
                  for beta in ("0", "0.5")}
-        table2.append({"env": "cdst", "preference": list(w), "protocol": "cdst_moiq", "beta0": round(final["0"], 3),
+        table2.append({"env": "cdst", "preference": list(w), "protocol": "cdst_moiq",
+                       "seeds": len(curves["MOIQ beta=0/eval_scalar_return"]), "beta0": round(final["0"], 3),
                        "beta5": None, "beta0.5": round(final["0.5"], 3), "beta0_last": round(float(last[:, e].mean()), 3),
                        "beta5_last": None, "paper_beta0": PAPER_CDST["beta0"][e],
                        "paper_beta5": PAPER_CDST["beta5"][e], "claim_holds": None})
@@ -96,11 +97,12 @@ def outputs_by_env(folder: pathlib.Path, name: str) -> dict[str, dict]:
 
 def env_rows(folder: pathlib.Path, name: str) -> list[dict]:
     """The rows of output ``name`` under ``folder``, each task's from its source (``outputs_by_env``), each with
-    ``demos``: whether it was made from the committed demonstrations (``demos_of``)."""
+    ``demos``: whether it was made from the committed demonstrations (``demos_of``), and ``seeds``: the output's
+    seed count where a row does not give its own."""
     rows = []
     for env, record in outputs_by_env(folder, name).items():
         demos = demos_of(env, record)
-        rows += [{**r, "demos": demos} for r in record.get("rows", []) if r["env"] == env]
+        rows += [{"seeds": record.get("seeds"), **r, "demos": demos} for r in record.get("rows", []) if r["env"] == env]
     return rows
 
 
@@ -135,7 +137,8 @@ def mujoco_rows(results: pathlib.Path) -> tuple[list[dict], list[dict], list[dic
                                      r["seeds"], protocol, r["demos"]))
         for r in env_rows(folder, "table2"):
             paper_better = r["paper_beta5"] > r["paper_beta0"]
-            table2.append({"env": r["env"], "preference": r["preference"], "protocol": protocol, "beta0": r["beta0"],
+            table2.append({"env": r["env"], "preference": r["preference"], "protocol": protocol, "seeds": r["seeds"],
+                           "beta0": r["beta0"],
                            "beta5": r["beta5"], "beta0.5": r.get("beta0.5"), "beta0_last": r.get("beta0_last"),
                            "beta5_last": r.get("beta5_last"), "paper_beta0": r["paper_beta0"],
                            "paper_beta5": r["paper_beta5"], "demos": r["demos"],
@@ -143,6 +146,7 @@ def mujoco_rows(results: pathlib.Path) -> tuple[list[dict], list[dict], list[dic
         for r in env_rows(folder, "table3"):
             episode = r.get("episode_correlation")  # outputs written before the episode reading have none
             table3.append({"env": r["env"], "preference": r["preference"], "beta": r["beta"], "protocol": protocol,
+                           "seeds": r["seeds"],
                            "correlation": r["correlation"], "std": r["std"],
                            "per_objective": [round(float(c), 3) for c in r["per_objective"]],
                            "episode_correlation": episode, "paper": r["paper"], "demos": r["demos"],
@@ -253,13 +257,13 @@ def main() -> None:
     lines += claims_by_protocol(table1)
     lines += markdown("Table 2: EWMA return at the end, beta 0 against 5 (claim: the paper's ordering; `_last`: mean "
                       "return over the last 20% of training, which the EWMA of a short run does not weigh alone)", table2,
-                      ["env", "preference", "protocol", "beta0", "beta5", "beta0.5", "beta0_last", "beta5_last",
+                      ["env", "preference", "protocol", "seeds", "beta0", "beta5", "beta0.5", "beta0_last", "beta5_last",
                        "paper_beta0", "paper_beta5", "demos", "claim_holds"])
     lines += markdown("Table 3: Pearson correlation of recovered and true scalarised reward (claim: >= the paper's; "
                       "`correlation`: per step on the demonstrations; `episode_correlation`: of the episode returns "
                       "across the best model's own episodes, the measure of IQ-Learn's code, on which the paper's is "
                       "built; `claim_holds_episodes`: the claim on that reading)",
-                      table3, ["env", "preference", "beta", "protocol", "correlation", "std", "per_objective",
+                      table3, ["env", "preference", "beta", "protocol", "seeds", "correlation", "std", "per_objective",
                                "episode_correlation", "paper", "demos", "claim_holds", "claim_holds_episodes"])
     lines += ["Per step on the demonstrations:", ""] + claims_by_protocol(table3)
     lines += ["Across the best models' own episodes:", ""] + claims_by_protocol(table3, "claim_holds_episodes")

@@ -147,8 +147,11 @@ def test_paper_summary_reads_every_table(outputs):
     for r in table1:  # within 10% of the expert, judged on the difference (negative returns included)
         holds = float(r["moiq"]) >= float(r["expert"]) - 0.1 * abs(float(r["expert"]))
         assert r["claim_holds"] == str(holds)
+    with open(tmp_path / "paper" / "table2.csv") as f:  # each row says over how many seeds it was averaged
+        assert [(r["env"], r["seeds"]) for r in csv.DictReader(f)] == [("cdst", "5")] * 3 + [("mo-halfcheetah", "2")] * 3
     with open(tmp_path / "paper" / "table3.csv") as f:
         for r in csv.DictReader(f):  # each reading judged on its own column
+            assert r["seeds"] == "2"
             assert r["claim_holds"] == str(float(r["correlation"]) >= float(r["paper"]))
             assert r["claim_holds_episodes"] == str(float(r["episode_correlation"]) >= float(r["paper"]))
     assert float(table1[6]["moiq"]) == 1234.5
