@@ -144,9 +144,14 @@ def test_paper_summary_reads_every_table(outputs):
     cdst = {(r["preference"], r["beta"]): r for r in table1 if r["env"] == "cdst"}
     assert float(cdst[("[0.9, 0.1]", "0.5")]["moiq"]) == 19.03 and cdst[("[0.9, 0.1]", "0.5")]["claim_holds"] == "True"
     assert float(cdst[("[0.1, 0.9]", "5.0")]["moiq"]) < -0.83 and float(cdst[("[0.1, 0.9]", "5.0")]["paper_moiq"]) == -1.73
+    near = lambda value, expert: str(float(value) >= float(expert) - 0.1 * abs(float(expert)))
     for r in table1:  # within 10% of the expert, judged on the difference (negative returns included)
-        holds = float(r["moiq"]) >= float(r["expert"]) - 0.1 * abs(float(r["expert"]))
-        assert r["claim_holds"] == str(holds)
+        assert r["claim_holds"] == near(r["moiq"], r["expert"])
+    each = {(str(r["preference"]), float(r["beta"])): r["each_best_mean"] for r in record["rows"]}  # own best actors
+    for r in table1[6:]:
+        assert float(r["each_best"]) == pytest.approx(each[(r["preference"], float(r["beta"]))], abs=0.01)
+        assert r["claim_holds_each_best"] == near(r["each_best"], r["expert"])
+    assert {r["each_best"] for r in table1[:6]} == {""}  # continuous DST's results did not keep them
     with open(tmp_path / "paper" / "table2.csv") as f:  # each row says over how many seeds it was averaged
         assert [(r["env"], r["seeds"]) for r in csv.DictReader(f)] == [("cdst", "5")] * 3 + [("mo-halfcheetah", "2")] * 3
     with open(tmp_path / "paper" / "table3.csv") as f:
