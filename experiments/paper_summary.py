@@ -7,7 +7,8 @@ trains nothing.
 Sources: continuous DST from ``results/cdst_moiq/`` (``best_models.csv``; beta 5 from ``beta_sweep_ups2.txt``;
 learning curves ``curves.npz``); each MuJoCo task, under every protocol found, from its per-task outputs
 ``results/mujoco_<protocol>/<env>/<name>/`` where they exist, else from the all-task ones
-``results/mujoco_<protocol>/<name>/`` (``name``: table1-3, figure2-4). Writes ``table{1,2,3}.csv``,
+``results/mujoco_<protocol>/<name>/`` (``name``: table1-3, figure2-4), with the rows of ``<env>/<name>_more_seeds/``
+(the same command over more seeds of some betas) in place of theirs. Writes ``table{1,2,3}.csv``,
 ``figure{2,3,4}.csv`` and ``summary.md`` under ``--out``. The claims checked per row: Table 1, MOIQ's best model
 within 10% of the expert's return, ``moiq >= expert - 0.1 |expert|`` (the paper's MOIQ column is, in 12 of 15
 settings; ``claim_holds_each_best`` judges each preference's own best actor where the runs kept it); Table 2,
@@ -103,12 +104,25 @@ def outputs_by_env(folder: pathlib.Path, name: str) -> dict[str, dict]:
 def env_rows(folder: pathlib.Path, name: str) -> list[dict]:
     """The rows of output ``name`` under ``folder``, each task's from its source (``outputs_by_env``), each with
     ``demos``: whether it was made from the committed demonstrations (``demos_of``), and ``seeds``: the output's
-    seed count where a row does not give its own."""
+    seed count where a row does not give its own. A task's ``<env>/<name>_more_seeds/<name>.json`` (the same
+    command over more seeds of some betas) replaces the rows of the same preference and beta that it averages
+    over more seeds."""
     rows = []
     for env, record in outputs_by_env(folder, name).items():
-        demos = demos_of(env, record)
-        rows += [{"seeds": record.get("seeds"), **r, "demos": demos} for r in record.get("rows", []) if r["env"] == env]
+        own = record_rows(env, record)
+        more_seeds = folder / env / f"{name}_more_seeds" / f"{name}.json"
+        if more_seeds.exists():
+            more = {(str(r["preference"]), r.get("beta")): r for r in record_rows(env, json.loads(more_seeds.read_text()))}
+            own = [max((r, more.get((str(r["preference"]), r.get("beta")), r)), key=lambda x: x["seeds"] or 0)
+                   for r in own]
+        rows += own
     return rows
+
+
+def record_rows(env: str, record: dict) -> list[dict]:
+    """Task ``env``'s rows of one output record, with ``seeds`` and ``demos`` (see ``env_rows``)."""
+    demos = demos_of(env, record)
+    return [{"seeds": record.get("seeds"), **r, "demos": demos} for r in record.get("rows", []) if r["env"] == env]
 
 
 def demos_of(env: str, record: dict) -> str | None:

@@ -134,6 +134,10 @@ def test_paper_summary_reads_every_table(outputs):
     record = json.loads((tmp_path / "mujoco_quick" / "table1" / "table1.json").read_text())
     record["rows"][0]["moiq_mean"] = 1234.5
     (task / "table1.json").write_text(json.dumps(record))
+    more = {**record, "rows": [{**record["rows"][1], "moiq_mean": 777.0, "seeds": 5},  # more seeds: replaces row 1
+                               {**record["rows"][2], "moiq_mean": -1.0}]}  # as many seeds: row 2 stays
+    (task.parent / "table1_more_seeds").mkdir()
+    (task.parent / "table1_more_seeds" / "table1.json").write_text(json.dumps(more))
     out = subprocess.run([sys.executable, str(ROOT / "experiments" / "paper_summary.py"), "--results", str(tmp_path),
                           "--out", str(tmp_path / "paper")], capture_output=True, text=True, timeout=300,
                          env={**os.environ, "PYTHONPATH": str(ROOT)}, check=False)
@@ -160,6 +164,8 @@ def test_paper_summary_reads_every_table(outputs):
             assert r["claim_holds"] == str(float(r["correlation"]) >= float(r["paper"]))
             assert r["claim_holds_episodes"] == str(float(r["episode_correlation"]) >= float(r["paper"]))
     assert float(table1[6]["moiq"]) == 1234.5
+    assert (float(table1[7]["moiq"]), table1[7]["seeds"]) == (777.0, "5")
+    assert (float(table1[8]["moiq"]), table1[8]["seeds"]) == (record["rows"][2]["moiq_mean"], "2")
     with open(tmp_path / "paper" / "figure3.csv") as f:
         figure3 = list(csv.DictReader(f))
     volumes = json.loads((tmp_path / "mujoco_quick" / "figure3" / "figure3.json").read_text())["mo-halfcheetah"]
