@@ -107,14 +107,14 @@ def env_rows(folder: pathlib.Path, name: str) -> list[dict]:
     seed count where a row does not give its own. A task's ``<env>/<name>_more_seeds/<name>.json`` (the same
     command over more seeds of some betas) replaces the rows of the same preference and beta that it averages
     over more seeds."""
+    setting = lambda r: (str(r["preference"]), r.get("beta"))
     rows = []
     for env, record in outputs_by_env(folder, name).items():
         own = record_rows(env, record)
         more_seeds = folder / env / f"{name}_more_seeds" / f"{name}.json"
         if more_seeds.exists():
-            more = {(str(r["preference"]), r.get("beta")): r for r in record_rows(env, json.loads(more_seeds.read_text()))}
-            own = [max((r, more.get((str(r["preference"]), r.get("beta")), r)), key=lambda x: x["seeds"] or 0)
-                   for r in own]
+            more = {setting(r): r for r in record_rows(env, json.loads(more_seeds.read_text()))}
+            own = [max((r, more.get(setting(r), r)), key=lambda x: x["seeds"] or 0) for r in own]  # ties keep r
         rows += own
     return rows
 
