@@ -2,6 +2,9 @@
 swept values) and evaluate to the same returns; joining runs of different sweeps, or unfinished ones, is a
 clear error."""
 
+import pathlib
+import sys
+
 import jax
 import numpy as np
 import pytest
@@ -10,6 +13,7 @@ import moiq_jax
 from moiq_jax.archive import PARAMS_FILE, PER_EXPERT_FILE, RESULT_FILE, load_result, save_result, stack_results
 from moiq_jax.config import tuned
 
+ROOT = pathlib.Path(__file__).resolve().parents[1]
 SMALL = {"total_steps": 600, "eval_interval": 300, "hidden_sizes": (8, 8), "batch_size": 8, "learning_starts": 60,
          "buffer_size": 600}
 
@@ -77,3 +81,42 @@ def test_joining_other_sweeps_or_unfinished_runs_is_an_error(sweep, tmp_path):
     admm = moiq_jax.train(tuned("dst", algo="admm", rounds=1))
     with pytest.raises(TypeError, match="admm.s has no network parameters"):
         save_result(admm, tmp_path / "admm")
+
+
+def test_compare_runs_tells_a_rerun_from_another_run(sweep, tmp_path):
+    """experiments/compare_runs.py: a run saved twice is the same run bit for bit; another seed differs in its
+    config, history and best model by the amounts numpy finds; a history changed at one evaluation is found there."""
+    sys.path.insert(0, str(ROOT / "experiments"))
+    from compare_runs import compare, report
+
+    run = sweep.run(0)
+    for name, result in (("a", run), ("b", run), ("seed3", sweep.run(1))):
+        save_result(result, tmp_path / name)
+        (tmp_path / name / "demos.sha256").write_text("abc123  demos.npz\n")
+    same = compare(tmp_path / "a", tmp_path / "b")
+    assert same["config_differs_in"] == [] and same["same_demonstrations"]
+    assert same["metrics_differing"] == {} and same["first_differing_evaluation"] is None
+    assert same["metrics_identical"] == sorted(run.history)
+    assert same["best_model_identical"] and same["best_model_largest_difference"] == 0.0 and same["each_best_identical"]
+
+    other = compare(tmp_path / "a", tmp_path / "seed3")
+    assert sweep.run(1).config.seed == 3 and other["config_differs_in"] == ["seed"]
+    a, b = run.history["eval_scalar_return"], sweep.run(1).history["eval_scalar_return"]
+    rows_differ = [i for i in range(len(a)) if not np.array_equal(a[i], b[i])]
+    assert other["metrics_differing"]["eval_scalar_return"] == {
+        "first_evaluation": rows_differ[0], "largest": pytest.approx(float(np.max(np.abs(a - b))), rel=1e-6)}
+    assert not other["best_model_identical"] and other["each_best_identical"] is False
+    leaves = zip(jax.tree.leaves(run.best_params), jax.tree.leaves(sweep.run(1).best_params))
+    assert other["best_model_largest_difference"] == pytest.approx(max(float(np.max(np.abs(x - y))) for x, y in leaves))
+
+    changed = {**run.history, "eval_scalar_return": run.history["eval_scalar_return"].copy()}
+    changed["eval_scalar_return"][1, 0] += 1.0
+    save_result(run.__class__(**{**run.__dict__, "history": changed}), tmp_path / "changed")
+    moved = compare(tmp_path / "a", tmp_path / "changed")
+    assert list(moved["metrics_differing"]) == ["eval_scalar_return"] and moved["best_model_identical"]
+    assert moved["metrics_differing"]["eval_scalar_return"] == {"first_evaluation": 1, "largest": pytest.approx(1.0)}
+    assert moved["first_differing_evaluation"]["env_steps"] == int(run.history["env_steps"][1])
+    assert not moved["same_demonstrations"]  # "changed" has no digest file
+    text = report(moved)
+    assert "history differs in eval_scalar_return: from evaluation 2, by up to 1" in text
+    assert f"first differing evaluation: 2 ({int(run.history['env_steps'][1]):,} env steps" in text
