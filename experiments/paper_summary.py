@@ -8,7 +8,9 @@ Sources: continuous DST from ``results/cdst_moiq/`` (``best_models.csv``; beta 5
 learning curves ``curves.npz``); each MuJoCo task, under every protocol found, from its per-task outputs
 ``results/mujoco_<protocol>/<env>/<name>/`` where they exist, else from the all-task ones
 ``results/mujoco_<protocol>/<name>/`` (``name``: table1-3, figure2-4), with the rows of ``<env>/<name>_more_seeds/``
-(the same command over more seeds of some betas) in place of theirs. Writes ``table{1,2,3}.csv``,
+(the same command over more seeds of some betas) in place of theirs, and the rows of ``<env>/table{1,3}_rerun/``
+(the same command over ``runs_rerun/``, a second set of runs of the same seeds) beside them as protocol
+``<protocol> rerun``. Writes ``table{1,2,3}.csv``,
 ``figure{2,3,4}.csv`` and ``summary.md`` under ``--out``. The claims checked per row: Table 1, MOIQ's best model
 within 10% of the expert's return, ``moiq >= expert - 0.1 |expert|`` (the paper's MOIQ column is, in 12 of 15
 settings; ``claim_holds_each_best`` judges each preference's own best actor where the runs kept it); Table 2,
@@ -119,6 +121,18 @@ def env_rows(folder: pathlib.Path, name: str) -> list[dict]:
     return rows
 
 
+def rerun_rows(folder: pathlib.Path, name: str) -> list[dict]:
+    """The rows of each task's ``<env>/<name>_rerun/<name>.json`` under ``folder``: the same command over a second
+    set of runs of the same seeds (the protocol's ``runs_rerun/``; a second sample wherever those runs are not
+    bit-identical to the main ones), kept beside the main rows and counted apart from them."""
+    rows = []
+    for env in paper.TASKS:
+        path = folder / env / f"{name}_rerun" / f"{name}.json"
+        if path.exists():
+            rows += record_rows(env, json.loads(path.read_text()))
+    return rows
+
+
 def record_rows(env: str, record: dict) -> list[dict]:
     """Task ``env``'s rows of one output record, with ``seeds`` and ``demos`` (see ``env_rows``)."""
     demos = demos_of(env, record)
@@ -151,9 +165,11 @@ def mujoco_rows(results: pathlib.Path) -> tuple[list[dict], list[dict], list[dic
     table1, table2, table3 = [], [], []
     for folder in sorted(results.glob("mujoco_*")):
         protocol = folder.name.removeprefix("mujoco_")
-        for r in env_rows(folder, "table1"):
+        rerun = f"{protocol} rerun"  # rows of runs_rerun/, counted apart
+        for label, r in [(protocol, r) for r in env_rows(folder, "table1")] + \
+                        [(rerun, r) for r in rerun_rows(folder, "table1")]:
             table1.append(table1_row(r["env"], r["preference"], r["beta"], r["moiq_mean"], r["moiq_std"], r["expert"],
-                                     r["seeds"], protocol, r["demos"], r.get("each_best_mean")))
+                                     r["seeds"], label, r["demos"], r.get("each_best_mean")))
         for r in env_rows(folder, "table2"):
             paper_better = r["paper_beta5"] > r["paper_beta0"]
             table2.append({"env": r["env"], "preference": r["preference"], "protocol": protocol, "seeds": r["seeds"],
@@ -162,9 +178,10 @@ def mujoco_rows(results: pathlib.Path) -> tuple[list[dict], list[dict], list[dic
                            "beta5_last": r.get("beta5_last"), "paper_beta0": r["paper_beta0"],
                            "paper_beta5": r["paper_beta5"], "demos": r["demos"],
                            "claim_holds": (r["beta5"] > r["beta0"]) == paper_better})
-        for r in env_rows(folder, "table3"):
+        for label, r in [(protocol, r) for r in env_rows(folder, "table3")] + \
+                        [(rerun, r) for r in rerun_rows(folder, "table3")]:
             episode = r.get("episode_correlation")  # outputs written before the episode reading have none
-            table3.append({"env": r["env"], "preference": r["preference"], "beta": r["beta"], "protocol": protocol,
+            table3.append({"env": r["env"], "preference": r["preference"], "beta": r["beta"], "protocol": label,
                            "seeds": r["seeds"],
                            "correlation": r["correlation"], "std": r["std"],
                            "per_objective": [round(float(c), 3) for c in r["per_objective"]],
@@ -267,7 +284,8 @@ def main() -> None:
     lines = ["# The paper's tables beside this project's measurements", "",
              "Written by `PYTHONPATH=. python experiments/paper_summary.py` from the committed outputs named in its",
              "docstring; `protocol` says which run each row comes from (cdst_moiq: `results/cdst_moiq/`, its tuned",
-             "config; cpu / cpu_recipe / paper: `experiments/paper_mujoco.py`'s protocols). `demos`: whether a MuJoCo",
+             "config; cpu / cpu_recipe / paper: `experiments/paper_mujoco.py`'s protocols; `<protocol> rerun`: the same",
+             "command's second set of runs of the same seeds, `runs_rerun/`, counted apart). `demos`: whether a MuJoCo",
              "row was made from the committed demonstrations (`replaced`: from experts replaced since, so not counted",
              "in the claims; n/a: the output does not say).", ""]
     lines += markdown("Table 1: best model's scalarised return (claim: within 10% of the expert)", table1,

@@ -138,13 +138,21 @@ def test_paper_summary_reads_every_table(outputs):
                                {**record["rows"][2], "moiq_mean": -1.0}]}  # as many seeds: row 2 stays
     (task.parent / "table1_more_seeds").mkdir()
     (task.parent / "table1_more_seeds" / "table1.json").write_text(json.dumps(more))
+    rerun = {**record, "rows": [{**r, "moiq_mean": 100.0 + i} for i, r in enumerate(record["rows"][3:])]}
+    for name, content in (("table1", rerun),  # a second set of runs: its rows beside the main ones, counted apart
+                          ("table3", json.loads((tmp_path / "mujoco_quick" / "table3" / "table3.json").read_text()))):
+        (task.parent / f"{name}_rerun").mkdir()
+        (task.parent / f"{name}_rerun" / f"{name}.json").write_text(json.dumps(content))
     out = subprocess.run([sys.executable, str(ROOT / "experiments" / "paper_summary.py"), "--results", str(tmp_path),
                           "--out", str(tmp_path / "paper")], capture_output=True, text=True, timeout=300,
                          env={**os.environ, "PYTHONPATH": str(ROOT)}, check=False)
     assert out.returncode == 0, out.stderr[-3000:]
     with open(tmp_path / "paper" / "table1.csv") as f:
         table1 = list(csv.DictReader(f))
-    assert [(r["env"], r["protocol"]) for r in table1] == [("cdst", "cdst_moiq")] * 6 + [("mo-halfcheetah", "quick")] * 6
+    assert [(r["env"], r["protocol"]) for r in table1] == ([("cdst", "cdst_moiq")] * 6 + [("mo-halfcheetah", "quick")] * 6
+                                                           + [("mo-halfcheetah", "quick rerun")] * 3)
+    assert [(r["beta"], float(r["moiq"])) for r in table1[12:]] == [(str(r["beta"]), 100.0 + i)
+                                                                    for i, r in enumerate(record["rows"][3:])]
     cdst = {(r["preference"], r["beta"]): r for r in table1 if r["env"] == "cdst"}
     assert float(cdst[("[0.9, 0.1]", "0.5")]["moiq"]) == 19.03 and cdst[("[0.9, 0.1]", "0.5")]["claim_holds"] == "True"
     assert float(cdst[("[0.1, 0.9]", "5.0")]["moiq"]) < -0.83 and float(cdst[("[0.1, 0.9]", "5.0")]["paper_moiq"]) == -1.73
@@ -152,14 +160,16 @@ def test_paper_summary_reads_every_table(outputs):
     for r in table1:  # within 10% of the expert, judged on the difference (negative returns included)
         assert r["claim_holds"] == near(r["moiq"], r["expert"])
     each = {(str(r["preference"]), float(r["beta"])): r["each_best_mean"] for r in record["rows"]}  # own best actors
-    for r in table1[6:]:
+    for r in table1[6:12]:
         assert float(r["each_best"]) == pytest.approx(each[(r["preference"], float(r["beta"]))], abs=0.01)
         assert r["claim_holds_each_best"] == near(r["each_best"], r["expert"])
     assert {r["each_best"] for r in table1[:6]} == {""}  # continuous DST's results did not keep them
     with open(tmp_path / "paper" / "table2.csv") as f:  # each row says over how many seeds it was averaged
         assert [(r["env"], r["seeds"]) for r in csv.DictReader(f)] == [("cdst", "5")] * 3 + [("mo-halfcheetah", "2")] * 3
     with open(tmp_path / "paper" / "table3.csv") as f:
-        for r in csv.DictReader(f):  # each reading judged on its own column
+        table3 = list(csv.DictReader(f))
+        assert [r["protocol"] for r in table3] == ["quick"] * 6 + ["quick rerun"] * 6
+        for r in table3:  # each reading judged on its own column
             assert r["seeds"] == "2"
             assert r["claim_holds"] == str(float(r["correlation"]) >= float(r["paper"]))
             assert r["claim_holds_episodes"] == str(float(r["episode_correlation"]) >= float(r["paper"]))
@@ -183,6 +193,8 @@ def test_paper_summary_reads_every_table(outputs):
                 assert r[f"claim_holds{end}"] == str(moiq >= other - 0.1 * abs(other))
     summary = (tmp_path / "paper" / "summary.md").read_text()
     assert all(f"## {name}" in summary for name in ("Table 2", "Figure 2", "Figure 3", "Figure 4"))
+    held = sum(r["claim_holds"] == "True" for r in table1[12:])
+    assert f"| quick rerun | 0.5 | {held} of 3 | mo-halfcheetah |" in summary
 
 
 def test_paper_summary_tells_rows_made_from_replaced_demonstrations():
