@@ -1,5 +1,5 @@
 """Whether two kept runs are the same run, bit for bit: their configs (but for file paths), demonstrations
-digests, every metric of the training history, the best model and each preference's best actor; where they
+digests, the hosts they trained on, every metric of the training history, the best model and each preference's best actor; where they
 differ, the first evaluation that does and the largest difference. This is how a rerun of a committed command
 is checked against the committed run.
 
@@ -17,11 +17,11 @@ import pathlib
 
 import jax
 import numpy as np
+from paper_mujoco import DIGEST_FILE
 
-from moiq_jax.archive import load_result
+from moiq_jax.archive import RESULT_FILE, load_result
 
 PATH_FIELDS = ("demos",)  # config fields that name a file, which a rerun from another checkout changes
-DIGEST_FILE = "demos.sha256"
 
 
 def _equal(x, y) -> bool:
@@ -39,6 +39,11 @@ def _trees_equal(x, y) -> bool:
     if jax.tree_util.tree_structure(x) != jax.tree_util.tree_structure(y):
         return False
     return all(_equal(a, b) for a, b in zip(jax.tree_util.tree_leaves(x), jax.tree_util.tree_leaves(y)))
+
+
+def _host(folder: pathlib.Path) -> str | None:
+    """The host the run was saved on (``result.json``'s ``host``; runs saved before it was recorded have none)."""
+    return json.loads((folder / RESULT_FILE).read_text()).get("host")
 
 
 def _first_difference(x, y) -> int | None:
@@ -82,6 +87,7 @@ def compare(a: pathlib.Path, b: pathlib.Path) -> dict:
                                     if k not in PATH_FIELDS and config_a.get(k) != config_b.get(k)),
         "demonstrations_digests": [_digest(a), _digest(b)],
         "same_demonstrations": _digest(a) is not None and _digest(a) == _digest(b),
+        "hosts": [_host(a), _host(b)],
         "evaluations": [len(history_a["env_steps"]), len(history_b["env_steps"])],
         "metrics_kept_by_one_run_only": [k for k in metrics if k not in shared],
         "metrics_identical": [k for k in shared if k not in differing],
@@ -104,6 +110,7 @@ def report(out: dict) -> str:
              "config: " + ("equal" if not out["config_differs_in"] else "differs in " + ", ".join(out["config_differs_in"]))
              + f" (file paths, {', '.join(PATH_FIELDS)}, not compared)",
              "demonstrations: " + ("the same digest" if out["same_demonstrations"] else f"digests {digests[0]} vs {digests[1]}"),
+             "host: " + " vs ".join(dict.fromkeys("not recorded" if h is None else h for h in out["hosts"])),
              f"evaluations: {out['evaluations'][0]} vs {out['evaluations'][1]}",
              "history bit-identical in: " + (", ".join(out["metrics_identical"]) or "no metric")]
     for name, d in out["metrics_differing"].items():

@@ -17,7 +17,6 @@ import hashlib
 import json
 import os
 import pathlib
-import platform
 import shlex
 import subprocess
 import sys
@@ -34,7 +33,7 @@ import moiq_jax
 from moiq_jax.archive import RESULT_FILE, load_result, save_result, stack_results
 from moiq_jax.config import Config, tuned
 from moiq_jax.result import Result
-from moiq_jax.runtime import split_cpu_into_devices, use_compilation_cache
+from moiq_jax.runtime import host_description, split_cpu_into_devices, use_compilation_cache
 from moiq_jax.train import SWEEP_FILE, run_dir_names, run_grid
 
 ENVS = ("mo-halfcheetah", "mo-hopper", "mo-walker2d", "mo-ant")  # the paper's four tasks: the scripts' default
@@ -428,8 +427,7 @@ def provenance() -> dict:
     changes = git("status", "--porcelain", "--", "moiq_jax", "experiments") if commit else None
     return {"command": shlex.join(["python", *sys.argv]), "commit": commit,
             "uncommitted_changes": None if changes is None else bool(changes),
-            "machine": f"{platform.machine()}, {os.cpu_count()} cores, jax {jax.__version__} on "
-                       f"{jax.devices()[0].platform}",
+            "machine": f"{host_description()}, jax {jax.__version__} on {jax.devices()[0].platform}",
             "wall_seconds": process_wall_seconds(),
             "written": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
 

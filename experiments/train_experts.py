@@ -30,7 +30,7 @@ import numpy as np
 
 import moiq_jax
 from moiq_jax.experts import sac
-from moiq_jax.runtime import parse_args_on_cores
+from moiq_jax.runtime import host_description, parse_args_on_cores
 
 
 def train(args, out: pathlib.Path) -> None:
@@ -51,6 +51,7 @@ def train(args, out: pathlib.Path) -> None:
         sac.save_experts(out / f"{args.env}-experts.npz", config, state.best_params.actor)
         steps = int(np.max(history[-1]["env_steps"]))
         record = {"env": args.env, "device": f"{device.platform} ({device.device_kind})",
+                  "hosts": list(dict.fromkeys([*earlier.get("hosts", []), host_description()])),  # one per part
                   "seconds": round(wall_before + time.perf_counter() - start, 1),
                   "cpu_seconds": round(cpu_before + time.process_time() - cpu_start, 1),
                   "env_steps_per_expert": steps,

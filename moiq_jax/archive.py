@@ -20,6 +20,7 @@ from flax import serialization, traverse_util
 from moiq_jax.config import Config
 from moiq_jax.networks import Params
 from moiq_jax.result import Result
+from moiq_jax.runtime import host_description
 from moiq_jax.train import algorithm_of
 
 RESULT_FILE, HISTORY_FILE, PARAMS_FILE = "result.json", "history.npz", "best_params.npz"
@@ -44,7 +45,8 @@ def save_result(result: Result, directory: str | os.PathLike) -> None:
               "runs": None if result.runs is None else {k: np.asarray(v).tolist() for k, v in result.runs.items()},
               "action_scale": result.best_params.action_scale,
               "best_return_per_expert": None if result.best_return_per_expert is None
-              else np.asarray(result.best_return_per_expert).tolist()}
+              else np.asarray(result.best_return_per_expert).tolist(),
+              "host": host_description()}  # where it is saved, which is where it trained
     tmp = os.path.join(directory, RESULT_FILE + ".tmp")
     with open(tmp, "w") as f:
         json.dump(record, f, indent=1, default=lambda x: np.asarray(x).tolist())

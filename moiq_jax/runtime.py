@@ -4,6 +4,7 @@ sweep's runs over the devices. They configure JAX itself, so they run before the
 from __future__ import annotations
 
 import os
+import platform
 
 import jax
 import numpy as np
@@ -20,6 +21,31 @@ def split_cpu_into_devices(count: int | None = None) -> None:
     flags = os.environ.get("XLA_FLAGS", "")
     if flag not in flags:
         os.environ["XLA_FLAGS"] = f"{flags} {flag}={count or os.cpu_count() or 1}".strip()
+
+
+VECTOR_EXTENSIONS = ("avx512f", "avx2", "fma", "avx")  # widest first: which XLA's CPU code may use
+
+
+def host_description() -> str:
+    """The host CPU that XLA compiles for: its model name, family and model and its vector extensions (which set
+    how XLA vectorises, so floating-point rounding can differ between hosts of the same name), and its cores.
+    Saved runs and experiment outputs record it, so that runs that part between machines can be told apart."""
+    fields = {}
+    try:
+        with open("/proc/cpuinfo") as f:
+            for line in f:
+                if not line.strip():
+                    break  # the first processor's block is enough
+                key, _, value = line.partition(":")
+                fields[key.strip()] = value.strip()
+    except OSError:
+        pass
+    if "flags" not in fields:  # not Linux: what the standard library knows
+        return f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores"
+    flags = set(fields["flags"].split())
+    vector = [x for x in VECTOR_EXTENSIONS if x in flags] or ["none of " + "/".join(VECTOR_EXTENSIONS)]
+    return (f"{fields.get('model name', platform.machine())} (family {fields.get('cpu family', '?')}, model "
+            f"{fields.get('model', '?')}), {' '.join(vector)}, {os.cpu_count()} cores")
 
 
 SINGLE_THREAD_FLAGS = ("--xla_cpu_multi_thread_eigen=false", "intra_op_parallelism_threads=1")

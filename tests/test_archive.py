@@ -2,6 +2,7 @@
 swept values) and evaluate to the same returns; joining runs of different sweeps, or unfinished ones, is a
 clear error."""
 
+import os
 import pathlib
 import sys
 
@@ -12,6 +13,7 @@ import pytest
 import moiq_jax
 from moiq_jax.archive import PARAMS_FILE, PER_EXPERT_FILE, RESULT_FILE, load_result, save_result, stack_results
 from moiq_jax.config import tuned
+from moiq_jax.runtime import host_description
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 SMALL = {"total_steps": 600, "eval_interval": 300, "hidden_sizes": (8, 8), "batch_size": 8, "learning_starts": 60,
@@ -94,6 +96,7 @@ def test_compare_runs_tells_a_rerun_from_another_run(sweep, tmp_path):
         save_result(result, tmp_path / name)
         (tmp_path / name / "demos.sha256").write_text("abc123  demos.npz\n")
     same = compare(tmp_path / "a", tmp_path / "b")
+    assert same["hosts"] == [host_description()] * 2 and f"host: {host_description()}\n" in report(same)
     assert same["config_differs_in"] == [] and same["same_demonstrations"]
     assert same["metrics_differing"] == {} and same["first_differing_evaluation"] is None
     assert same["metrics_identical"] == sorted(run.history)
@@ -120,3 +123,18 @@ def test_compare_runs_tells_a_rerun_from_another_run(sweep, tmp_path):
     text = report(moved)
     assert "history differs in eval_scalar_return: from evaluation 2, by up to 1" in text
     assert f"first differing evaluation: 2 ({int(run.history['env_steps'][1]):,} env steps" in text
+
+
+def test_host_description_names_the_cpu_and_its_vector_extensions():
+    """The host a run is saved on: the first processor's model, family and model, and which of the vector
+    extensions XLA may use it has, as /proc/cpuinfo lists them."""
+    text = host_description()
+    assert text.endswith(f", {os.cpu_count()} cores")
+    if not os.path.exists("/proc/cpuinfo"):
+        return
+    block = pathlib.Path("/proc/cpuinfo").read_text().split("\n\n")[0]
+    fields = {k.strip(): v.strip() for k, _, v in (line.partition(":") for line in block.splitlines())}
+    assert text.startswith(f"{fields['model name']} (family {fields['cpu family']}, model {fields['model']}), ")
+    flags = set(fields["flags"].split())
+    for extension in ("avx512f", "avx2", "fma", "avx"):
+        assert (f" {extension} " in text or f" {extension}," in text) == (extension in flags), extension

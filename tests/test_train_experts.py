@@ -11,6 +11,7 @@ import sys
 import numpy as np
 
 from moiq_jax.experts import Demonstrations
+from moiq_jax.runtime import host_description
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 
@@ -36,6 +37,7 @@ def test_cut_resumed_adopting_run_then_demonstrations(tmp_path):
     history = training["history"]
     assert [steps[0] for steps in history["env_steps"]] == [8, 16, 24] and training["env_steps_per_expert"] == 24
     assert training["cpu_seconds"] > part["cpu_seconds"] and training["config"]["adopt_margin"] == 0.0
+    assert part["hosts"] == training["hosts"] == [host_description()]  # both parts on this host, named once
     labels = [tuple(w) for w in training["config"]["preferences"]]
     preferences = np.asarray(labels)
     expected_lines = []
