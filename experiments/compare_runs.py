@@ -81,12 +81,13 @@ def compare(a: pathlib.Path, b: pathlib.Path) -> dict:
     first = min((d["first_evaluation"] for d in differing.values()), default=None)
     same_shape = jax.tree_util.tree_structure(run_a.best_params) == jax.tree_util.tree_structure(run_b.best_params)
     both_each_best = run_a.best_actor_per_expert is not None and run_b.best_actor_per_expert is not None
+    digests = [_digest(a), _digest(b)]
     return {
         "a": str(a), "b": str(b),
         "config_differs_in": sorted(k for k in {*config_a, *config_b}
                                     if k not in PATH_FIELDS and config_a.get(k) != config_b.get(k)),
-        "demonstrations_digests": [_digest(a), _digest(b)],
-        "same_demonstrations": _digest(a) is not None and _digest(a) == _digest(b),
+        "demonstrations_digests": digests,
+        "same_demonstrations": digests[0] is not None and digests[0] == digests[1],
         "hosts": [_host(a), _host(b)],
         "evaluations": [len(history_a["env_steps"]), len(history_b["env_steps"])],
         "metrics_kept_by_one_run_only": [k for k in metrics if k not in shared],
@@ -96,7 +97,7 @@ def compare(a: pathlib.Path, b: pathlib.Path) -> dict:
             "index": first, "env_steps": int(np.asarray(history_a["env_steps"])[min(first, len(history_a["env_steps"]) - 1)]),
             "mean_scalar_return": [float(np.mean(h["eval_scalar_return"][first])) if first < len(h["eval_scalar_return"])
                                    else None for h in (history_a, history_b)]},
-        "best_model_identical": same_shape and _trees_equal(run_a.best_params, run_b.best_params),
+        "best_model_identical": _trees_equal(run_a.best_params, run_b.best_params),
         "best_model_largest_difference": _largest_difference(run_a.best_params, run_b.best_params) if same_shape else None,
         "each_best_identical": _trees_equal(run_a.best_actor_per_expert, run_b.best_actor_per_expert)
         if both_each_best else None,

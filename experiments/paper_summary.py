@@ -133,6 +133,12 @@ def rerun_rows(folder: pathlib.Path, name: str) -> list[dict]:
     return rows
 
 
+def labelled_rows(folder: pathlib.Path, protocol: str, name: str) -> list[tuple[str, dict]]:
+    """``(protocol label, row)`` for output ``name``'s main rows (``env_rows``) and then its rerun rows
+    (``rerun_rows``), which are labelled ``<protocol> rerun`` so that they are counted apart."""
+    return [(protocol, r) for r in env_rows(folder, name)] + [(f"{protocol} rerun", r) for r in rerun_rows(folder, name)]
+
+
 def record_rows(env: str, record: dict) -> list[dict]:
     """Task ``env``'s rows of one output record, with ``seeds`` and ``demos`` (see ``env_rows``)."""
     demos = demos_of(env, record)
@@ -165,9 +171,7 @@ def mujoco_rows(results: pathlib.Path) -> tuple[list[dict], list[dict], list[dic
     table1, table2, table3 = [], [], []
     for folder in sorted(results.glob("mujoco_*")):
         protocol = folder.name.removeprefix("mujoco_")
-        rerun = f"{protocol} rerun"  # rows of runs_rerun/, counted apart
-        for label, r in [(protocol, r) for r in env_rows(folder, "table1")] + \
-                        [(rerun, r) for r in rerun_rows(folder, "table1")]:
+        for label, r in labelled_rows(folder, protocol, "table1"):
             table1.append(table1_row(r["env"], r["preference"], r["beta"], r["moiq_mean"], r["moiq_std"], r["expert"],
                                      r["seeds"], label, r["demos"], r.get("each_best_mean")))
         for r in env_rows(folder, "table2"):
@@ -178,8 +182,7 @@ def mujoco_rows(results: pathlib.Path) -> tuple[list[dict], list[dict], list[dic
                            "beta5_last": r.get("beta5_last"), "paper_beta0": r["paper_beta0"],
                            "paper_beta5": r["paper_beta5"], "demos": r["demos"],
                            "claim_holds": (r["beta5"] > r["beta0"]) == paper_better})
-        for label, r in [(protocol, r) for r in env_rows(folder, "table3")] + \
-                        [(rerun, r) for r in rerun_rows(folder, "table3")]:
+        for label, r in labelled_rows(folder, protocol, "table3"):
             episode = r.get("episode_correlation")  # outputs written before the episode reading have none
             table3.append({"env": r["env"], "preference": r["preference"], "beta": r["beta"], "protocol": label,
                            "seeds": r["seeds"],

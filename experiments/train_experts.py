@@ -46,12 +46,13 @@ def train(args, out: pathlib.Path) -> None:
     print(f"{args.env}: SAC experts for {config.preferences}, up to {config.offpolicy.total_steps:,} env steps each, "
           f"on {device.platform} ({device.device_kind})", flush=True)
     start, cpu_start = time.perf_counter(), time.process_time()
+    hosts = list(dict.fromkeys([*earlier.get("hosts", []), host_description()]))  # one per resumed part
 
     def keep(state, history):
         sac.save_experts(out / f"{args.env}-experts.npz", config, state.best_params.actor)
         steps = int(np.max(history[-1]["env_steps"]))
         record = {"env": args.env, "device": f"{device.platform} ({device.device_kind})",
-                  "hosts": list(dict.fromkeys([*earlier.get("hosts", []), host_description()])),  # one per part
+                  "hosts": hosts,
                   "seconds": round(wall_before + time.perf_counter() - start, 1),
                   "cpu_seconds": round(cpu_before + time.process_time() - cpu_start, 1),
                   "env_steps_per_expert": steps,
