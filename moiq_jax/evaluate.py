@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 
 import jax
@@ -111,18 +112,33 @@ def evaluate(params, env: Env | str, preferences, episodes: int = 1, seed: int =
     ``env`` is an env or a registered name; a name is made with the absorbing state, as in training
     (a policy trained with it observes the absorbing flag). Preferences may be any, not just the experts'.
     """
-    from moiq_jax import envs
     from moiq_jax.networks import networks_for, observation_size
 
-    env = envs.make(env, absorbing=True) if isinstance(env, str) else env
-    nets = networks_for(params)
+    env = _absorbing_env(env) if isinstance(env, str) else env
     expected = observation_size(params)
     if expected != env.observation_size:
         raise ValueError(f"the policy observes {expected} values but the env gives {env.observation_size}; "
                          "was it trained with the absorbing state (envs.make(name, absorbing=True))?")
+    run = _evaluation_program(env, networks_for(params), episodes)
     prefs = jnp.asarray(preferences, jnp.float32)
-    run = jax.jit(lambda actor, key: preference_returns(nets, actor, env, prefs, key, episodes))
-    return np.asarray(run(params.actor, jax.random.PRNGKey(seed)).mean(axis=1))
+    return np.asarray(run(params.actor, prefs, jax.random.PRNGKey(seed)).mean(axis=1))
+
+
+@functools.lru_cache(maxsize=8)
+def _absorbing_env(name: str) -> Env:
+    """``envs.make(name, absorbing=True)``, one per name and process, so that ``evaluate`` calls on the same
+    name share their compiled programs (a MuJoCo env's step is a host callback of its own simulator, which
+    JAX's persistent compilation cache cannot keep)."""
+    from moiq_jax import envs
+
+    return envs.make(name, absorbing=True)
+
+
+@functools.lru_cache(maxsize=16)
+def _evaluation_program(env: Env, nets, episodes: int):
+    """``preference_returns`` jitted for one env, network shape and episode count, the actor parameters,
+    preferences and key its inputs: ``evaluate`` compiles it once per preference count, not once per call."""
+    return jax.jit(lambda actor, prefs, key: preference_returns(nets, actor, env, prefs, key, episodes))
 
 
 def nondominated(points) -> np.ndarray:

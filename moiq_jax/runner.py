@@ -9,6 +9,7 @@ run resumes from its last chunk and ends with the same result as an uninterrupte
 
 from __future__ import annotations
 
+import functools
 import os
 import time
 from collections.abc import Callable
@@ -61,14 +62,21 @@ def all_runs(trainer, config, keys, hyper, setup, run_names, run_configs) -> Pro
     # Every output keeps the runs' sharding (XLA would leave what does not depend on the inputs, such as the
     # empty replay buffers, on one device, and a chunk then runs every run there).
     sharding = keys.sharding if isinstance(keys.sharding, jax.sharding.NamedSharding) else None
-    init = jax.jit(jax.vmap(trainer.init), out_shardings=sharding)
-    step = jax.jit(jax.vmap(trainer.run_chunk), donate_argnums=0, out_shardings=sharding)
+    init, step = _vmapped(trainer.init, trainer.run_chunk, sharding)
     total_steps = config.offpolicy.eval_interval * trainer.num_chunks
     return Program(lambda: init(keys, setup), lambda state: step(state, hyper, setup), trainer.num_chunks,
                    config.offpolicy.eval_interval, f"{config.algo} sweep of {len(run_names)} runs",
                    lambda run_dir, resume_step, progress: RunLogs(run_dir, run_names, run_configs, total_steps,
                                                                   resume_step),
                    tuple(run_names))
+
+
+@functools.lru_cache(maxsize=4)
+def _vmapped(init, run_chunk, sharding):
+    """``init`` and ``run_chunk`` vmapped over runs and jitted, one pair per trainer and sharding, so that the
+    sweeps of one trainer (``train.sweep`` reuses it across a script's sweeps) compile their chunk once."""
+    return (jax.jit(jax.vmap(init), out_shardings=sharding),
+            jax.jit(jax.vmap(run_chunk), donate_argnums=0, out_shardings=sharding))
 
 
 def _to_json(metrics: dict) -> dict:

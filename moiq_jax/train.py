@@ -6,6 +6,7 @@ one off-policy loop) or ADMM's tabular program. Both return a ``Result``.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import itertools
 import json
@@ -173,7 +174,7 @@ def sweep(config: Config, demos=None, run_dir: str | None = None, resume: bool =
     start = time.perf_counter()
     swept_sets = sets is not None
     if sets is None:
-        trainer = make_trainer(config, algorithm, demos)
+        trainer = make_trainer(config, algorithm, demos) if demos is not None else _config_trainer(config)
         setups, sets = [trainer.setup], [trainer.preferences]
         given = sets
     else:
@@ -222,6 +223,23 @@ def sweep(config: Config, demos=None, run_dir: str | None = None, resume: bool =
     history = {name: np.stack([h[name] for h in history], axis=1) for name in history[0]}
     return Result(config, preferences, history, final, best, np.asarray(state.best_return),
                   time.perf_counter() - start, runs=runs, **as_result_fields(per_expert))
+
+
+def _config_trainer(config: Config):
+    """``make_trainer`` of ``config`` with the demonstrations it names, kept for the next sweep of the same
+    config (and demonstrations file, unchanged) in this process: sweeps that differ only in their swept
+    values (a script's beta after beta) then run one compiled chunk. A MuJoCo chunk steps its simulator by a
+    host callback, which JAX's persistent compilation cache cannot keep, so each new trainer compiles anew."""
+    stamp = None
+    if config.demos is not None and os.path.exists(config.demos):
+        stat = os.stat(config.demos)
+        stamp = (stat.st_mtime_ns, stat.st_size)
+    return _trainer_of(config, stamp)
+
+
+@functools.lru_cache(maxsize=2)
+def _trainer_of(config: Config, demos_stamp):
+    return make_trainer(config, algorithm_of(config))
 
 
 def run_dir_names(runs: dict) -> list[str]:

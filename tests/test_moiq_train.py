@@ -1,5 +1,6 @@
 """CI-sized MOIQ training: the loop runs end to end, the baselines share it, and a sweep equals its runs."""
 
+import contextlib
 import os
 import subprocess
 import sys
@@ -10,9 +11,12 @@ import numpy as np
 import pytest
 
 import moiq_jax
+from moiq_jax import runner
 from moiq_jax.algos.offpolicy import make_trainer
 from moiq_jax.config import tuned
+from moiq_jax.evaluate import preference_returns
 from moiq_jax.experts.loading import load_demonstrations
+from moiq_jax.networks import networks_for
 from moiq_jax.runtime import pin_to_cores
 from moiq_jax.train import ALGORITHMS, validate
 
@@ -48,6 +52,60 @@ def test_evaluate_reproduces_the_best_models_training_evaluation(trained):
     assert transfer.shape == (19, 2) and np.all(transfer[:, 1] <= -1)  # every episode costs at least one step
     with pytest.raises(ValueError, match="absorbing"):
         moiq_jax.evaluate(result.best_params, moiq_jax.envs.make("cdst"), TINY.preferences)
+
+
+@contextlib.contextmanager
+def compiled_programs():
+    """The names of the programs XLA compiles inside the block (persistent-cache hits included), in order."""
+    names = []
+
+    def listener(event, seconds, **kwargs):
+        if event == "/jax/core/compile/backend_compile_duration":
+            names.append(kwargs.get("fun_name"))
+
+    jax.monitoring.register_event_duration_secs_listener(listener)
+    try:
+        yield names
+    finally:
+        jax.monitoring.unregister_event_duration_listener(listener)
+
+
+def test_evaluate_compiles_once_per_preference_count(trained):
+    """Evaluations of one env name, network shape and episode count share one program: parameters and
+    preferences are its inputs, so a script evaluating run after run compiles once (per preference count)."""
+    others = [[0.3, 0.7], [0.6, 0.4], [0.95, 0.05]]
+    with compiled_programs() as names:
+        best = moiq_jax.evaluate(trained.best_params, "cdst", TINY.preferences, episodes=3)
+        final = moiq_jax.evaluate(trained.final_params, "cdst", others, episodes=3)
+        five = moiq_jax.evaluate(trained.best_params, "cdst", [*TINY.preferences, *others[:2]], episodes=3)
+    assert names.count("jit(<lambda>)") == 2  # three preferences, then five
+    nets = networks_for(trained.best_params)
+    env = moiq_jax.envs.make("cdst", absorbing=True)
+    direct = lambda params, prefs: jax.jit(lambda: preference_returns(
+        nets, params.actor, env, jnp.asarray(prefs, jnp.float32), jax.random.PRNGKey(0), 3))().mean(axis=1)
+    np.testing.assert_array_equal(best, direct(trained.best_params, TINY.preferences))
+    np.testing.assert_array_equal(final, direct(trained.final_params, others))
+    np.testing.assert_array_equal(five[:3], best)
+
+
+def test_sweeps_of_one_config_share_one_compiled_chunk(tmp_path):
+    """Checkpointed sweeps of one config that differ only in beta (a script trains beta after beta) compile
+    their chunk once, and the reuse changes nothing: the second sweep ends bit for bit as one built afresh."""
+    config = TINY.replace(seed=7)
+    with compiled_programs() as names:
+        first = moiq_jax.sweep(config, run_dir=str(tmp_path / "beta5"), log=None, beta=[5.0], seed=[0, 1])
+        second = moiq_jax.sweep(config, run_dir=str(tmp_path / "beta0"), log=None, beta=[0.0], seed=[0, 1])
+    assert names.count("jit(chunk_all)") == 1
+    sys.modules["moiq_jax.train"]._trainer_of.cache_clear()
+    runner._vmapped.cache_clear()
+    with compiled_programs() as names:
+        afresh = moiq_jax.sweep(config, run_dir=str(tmp_path / "afresh"), log=None, beta=[0.0], seed=[0, 1])
+    assert names.count("jit(chunk_all)") == 1
+    for name in ("critic_loss", "eval_return", "penalty"):
+        np.testing.assert_array_equal(second.history[name], afresh.history[name])
+    for a, b in zip(jax.tree_util.tree_leaves(second.best_params), jax.tree_util.tree_leaves(afresh.best_params)):
+        np.testing.assert_array_equal(a, b)
+    assert not np.array_equal(first.history["critic_loss"], second.history["critic_loss"])
 
 
 def test_each_experts_best_actor_is_the_actor_of_its_best_evaluation():

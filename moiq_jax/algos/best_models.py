@@ -11,10 +11,10 @@ import jax.numpy as jnp
 def initial_best(params, num_experts: int, per_expert: bool) -> dict:
     """The best-model fields of a run's state before its first evaluation (``per_expert``: keep each
     expert's best actor too, with a leading expert axis)."""
-    fields = {"best_params": params, "best_return": jnp.full((), -jnp.inf)}
+    fields = {"best_params": params, "best_return": jnp.full((), -jnp.inf, jnp.float32)}
     if per_expert:
         fields["best_actor_per_expert"] = jax.tree_util.tree_map(lambda x: jnp.stack([x] * num_experts), params.actor)
-        fields["best_return_per_expert"] = jnp.full((num_experts,), -jnp.inf)
+        fields["best_return_per_expert"] = jnp.full((num_experts,), -jnp.inf, jnp.float32)
     return fields
 
 
