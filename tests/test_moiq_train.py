@@ -11,7 +11,6 @@ import numpy as np
 import pytest
 
 import moiq_jax
-from moiq_jax import runner
 from moiq_jax.algos.offpolicy import make_trainer
 from moiq_jax.config import tuned
 from moiq_jax.evaluate import preference_returns
@@ -90,22 +89,18 @@ def test_evaluate_compiles_once_per_preference_count(trained):
 
 def test_sweeps_of_one_config_share_one_compiled_chunk(tmp_path):
     """Checkpointed sweeps of one config that differ only in beta (a script trains beta after beta) compile
-    their chunk once, and the reuse changes nothing: the second sweep ends bit for bit as one built afresh."""
+    their chunk once, and the reuse carries nothing from one sweep to the next: beta 0 after a beta-5 sweep
+    ends bit for bit as the first sweep of beta 0, on a program built afresh, did."""
     config = TINY.replace(seed=7)
+    sweep = lambda name, beta: moiq_jax.sweep(config, run_dir=str(tmp_path / name), log=None, beta=[beta], seed=[0, 1])
     with compiled_programs() as names:
-        first = moiq_jax.sweep(config, run_dir=str(tmp_path / "beta5"), log=None, beta=[5.0], seed=[0, 1])
-        second = moiq_jax.sweep(config, run_dir=str(tmp_path / "beta0"), log=None, beta=[0.0], seed=[0, 1])
-    assert names.count("jit(chunk_all)") == 1
-    sys.modules["moiq_jax.train"]._trainer_of.cache_clear()
-    runner._vmapped.cache_clear()
-    with compiled_programs() as names:
-        afresh = moiq_jax.sweep(config, run_dir=str(tmp_path / "afresh"), log=None, beta=[0.0], seed=[0, 1])
+        first, other, again = sweep("first", 0.0), sweep("other", 5.0), sweep("again", 0.0)
     assert names.count("jit(chunk_all)") == 1
     for name in ("critic_loss", "eval_return", "penalty"):
-        np.testing.assert_array_equal(second.history[name], afresh.history[name])
-    for a, b in zip(jax.tree_util.tree_leaves(second.best_params), jax.tree_util.tree_leaves(afresh.best_params)):
+        np.testing.assert_array_equal(again.history[name], first.history[name])
+    for a, b in zip(jax.tree_util.tree_leaves(again.best_params), jax.tree_util.tree_leaves(first.best_params)):
         np.testing.assert_array_equal(a, b)
-    assert not np.array_equal(first.history["critic_loss"], second.history["critic_loss"])
+    assert not np.array_equal(other.history["critic_loss"], first.history["critic_loss"])
 
 
 def test_each_experts_best_actor_is_the_actor_of_its_best_evaluation():
