@@ -22,6 +22,8 @@ import sys
 import tempfile
 import time
 
+from suite_time import suite_seconds
+
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 COMPILED = re.compile(r"Finished XLA compilation of (.+?) in ([0-9.e+-]+) sec")
 
@@ -44,17 +46,6 @@ def script_run(tree: pathlib.Path, script: str) -> dict:
     per_name = collections.Counter(name for name, _ in compiles)
     return {"seconds": seconds, "compiles": len(compiles), "compile_seconds": sum(s for _, s in compiles),
             "chunks": per_name["jit(chunk_all)"], "top": per_name.most_common(3)}
-
-
-def suite_seconds(tree: pathlib.Path) -> tuple[float, str]:
-    with tempfile.TemporaryDirectory() as cache:
-        start = time.perf_counter()
-        out = subprocess.run([sys.executable, "-m", "pytest", "-q", "-n", "2", "--dist", "loadfile", "-p",
-                              "no:cacheprovider", "tests"], cwd=tree, env=environment(tree, cache) | {"JAX_LOG_COMPILES": "0"},
-                             capture_output=True, text=True, check=False)
-        seconds = time.perf_counter() - start
-    summary = out.stdout.strip().splitlines()[-1] if out.stdout.strip() else out.stderr[-500:]
-    return seconds, summary
 
 
 def main() -> None:
@@ -81,7 +72,8 @@ def main() -> None:
             print(f"  this / baseline: wall {this['seconds'] / base['seconds']:.2f}, "
                   f"compile seconds {this['compile_seconds'] / base['compile_seconds']:.2f}")
             if args.suite:
-                suite = {label: suite_seconds(tree) for label, tree in trees.items()}
+                suite = {label: suite_seconds(lambda cache, tree=tree: environment(tree, cache) | {"JAX_LOG_COMPILES": "0"},
+                                             ["tests"], tree) for label, tree in trees.items()}
                 for label, (seconds, summary) in suite.items():
                     print(f"pytest tests, {label}, empty compilation cache: {seconds:.0f} s ({summary})")
                 (base_s, _), (this_s, _) = suite.values()

@@ -56,11 +56,13 @@ def chunk_compile_seconds(level: int) -> float:
     return float(out.stdout.strip().splitlines()[-1])
 
 
-def suite_seconds(level: int, tests: list[str]) -> tuple[float, str]:
+def suite_seconds(env_of, tests: list[str], tree: pathlib.Path = ROOT) -> tuple[float, str]:
+    """Wall seconds and pytest's summary line of the README's test command on ``tests`` in ``tree``, with the
+    environment ``env_of(cache)`` for an empty compilation cache ``cache`` of its own."""
     with tempfile.TemporaryDirectory() as cache:
         start = time.perf_counter()
         out = subprocess.run([sys.executable, "-m", "pytest", "-q", "-n", "2", "--dist", "loadfile",
-                              "-p", "no:cacheprovider", *tests], cwd=ROOT, env=environment(level, cache),
+                              "-p", "no:cacheprovider", *tests], cwd=tree, env=env_of(cache),
                              capture_output=True, text=True, check=False)
         seconds = time.perf_counter() - start
     summary = out.stdout.strip().splitlines()[-1] if out.stdout.strip() else out.stderr[-500:]
@@ -80,7 +82,7 @@ def main() -> None:
     if not args.skip_suite:
         suite = {}
         for level in LEVELS:
-            suite[level], summary = suite_seconds(level, args.tests)
+            suite[level], summary = suite_seconds(lambda cache, level=level: environment(level, cache), args.tests)
             print(f"pytest {' '.join(args.tests)} at level {level}, cold compilation cache: {suite[level]:.0f} s ({summary})")
         print(f"  level 0 / level 3: {suite[0] / suite[3]:.2f}")
     print(f"uptime after: {os.getloadavg()}")
