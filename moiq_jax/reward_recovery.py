@@ -5,6 +5,8 @@ episodes (``rollout_reward_correlations``: the measure of IQ-Learn's code, on wh
 
 from __future__ import annotations
 
+import functools
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -59,29 +61,10 @@ def rollout_reward_correlations(params, config: Config, episodes: int = 100, see
     ``[E]``; the scalarised returns themselves, ``episode_returns`` and ``recovered_episode_returns``
     ``[E, episodes]``. A correlation is NaN where a side does not vary (a deterministic env and policy repeat
     one episode)."""
-    algorithm = _reward_learner(config, "rollout_reward_correlations")
-    env = config.make_env(absorbing=True)
-    env = env if config.offpolicy.absorbing_rollouts else DoneOnAbsorption(env)
-    nets = networks_of_config(config.offpolicy, env)
-    rewards_of = moiq.recovered_reward_fn(config, nets)
+    _reward_learner(config, "rollout_reward_correlations")
+    run = _rollout_program(config.replace(seed=0, beta=0.0), episodes)
     preferences = jnp.asarray(config.preferences, jnp.float32)
-    key = jax.random.PRNGKey(seed)
-    value_key = jax.random.fold_in(key, 1)
-
-    def one_model(p, prefs, keys):  # prefs [k, d]: the preferences this model is evaluated at
-        policy = lambda w: (lambda _, obs: nets.act(p.actor, obs[None], w)[0])
-        steps = jax.vmap(lambda w, k: episode_transitions(env, policy(w), k, episodes))(prefs, keys)  # [k, N, T, ..]
-        flat = lambda x: x.reshape(x.shape[0], -1, *x.shape[3:])
-        data = {"obs": flat(steps["obs"]), "action": flat(steps["action"]), "next_obs": flat(steps["next_obs"]),
-                "done": flat(steps["done"]).astype(jnp.float32)}
-        return rewards_of(p, data, prefs, value_key).reshape(steps["reward"].shape), steps["reward"], steps["alive"]
-
-    keys = jax.random.split(key, preferences.shape[0])  # evaluate's episodes
-    if algorithm.one_model_per_expert:  # one model per expert, on a leading model axis
-        per_model = jax.vmap(lambda p, w, k: one_model(p, w[None], k[None]))
-        recovered, true, alive = (np.asarray(x[:, 0]) for x in jax.jit(per_model)(params, preferences, keys))
-    else:
-        recovered, true, alive = (np.asarray(x) for x in jax.jit(one_model)(params, preferences, keys))
+    recovered, true, alive = (np.asarray(x) for x in run(params, preferences, jax.random.PRNGKey(seed)))
     prefs = np.asarray(preferences, np.float64)
     recovered, true = (np.where(alive[..., None], x, 0.0).astype(np.float64) for x in (recovered, true))  # [E, N, T, d]
     recovered_returns, true_returns = recovered.sum(2), true.sum(2)  # [E, N, d]
@@ -92,6 +75,37 @@ def rollout_reward_correlations(params, config: Config, episodes: int = 100, see
                                                               np.moveaxis(true_returns, 1, -1)),
             "step_reward_correlation": np.asarray([_pearson(r, t) for r, t in zip(on_steps(recovered), on_steps(true))]),
             "episode_returns": scalar(true_returns), "recovered_episode_returns": scalar(recovered_returns)}
+
+
+@functools.lru_cache(maxsize=4)
+def _rollout_program(config: Config, episodes: int):
+    """``fn(params, preferences, key) -> (recovered, true, alive)`` ``[E, episodes, T, ..]`` jitted once per
+    config up to its seed and consensus weight (neither enters it; the caller sets both to one value): a
+    table's runs of one protocol share one compiled program (a MuJoCo env steps by a host callback, which JAX's
+    persistent compilation cache cannot keep)."""
+    algorithm = algorithm_of(config)
+    env = config.make_env(absorbing=True)
+    env = env if config.offpolicy.absorbing_rollouts else DoneOnAbsorption(env)
+    nets = networks_of_config(config.offpolicy, env)
+    rewards_of = moiq.recovered_reward_fn(config, nets)
+
+    def one_model(p, prefs, keys, value_key):  # prefs [k, d]: the preferences this model is evaluated at
+        policy = lambda w: (lambda _, obs: nets.act(p.actor, obs[None], w)[0])
+        steps = jax.vmap(lambda w, k: episode_transitions(env, policy(w), k, episodes))(prefs, keys)  # [k, N, T, ..]
+        flat = lambda x: x.reshape(x.shape[0], -1, *x.shape[3:])
+        data = {"obs": flat(steps["obs"]), "action": flat(steps["action"]), "next_obs": flat(steps["next_obs"]),
+                "done": flat(steps["done"]).astype(jnp.float32)}
+        return rewards_of(p, data, prefs, value_key).reshape(steps["reward"].shape), steps["reward"], steps["alive"]
+
+    def run(params, preferences, key):
+        keys = jax.random.split(key, preferences.shape[0])  # evaluate's episodes
+        value_key = jax.random.fold_in(key, 1)
+        if algorithm.one_model_per_expert:  # one model per expert, on a leading model axis
+            per_model = jax.vmap(lambda p, w, k: one_model(p, w[None], k[None], value_key))
+            return jax.tree_util.tree_map(lambda x: x[:, 0], per_model(params, preferences, keys))
+        return one_model(params, preferences, keys, value_key)
+
+    return jax.jit(run)
 
 
 def _pearson(x: np.ndarray, y: np.ndarray) -> np.ndarray:

@@ -1,6 +1,5 @@
 """CI-sized MOIQ training: the loop runs end to end, the baselines share it, and a sweep equals its runs."""
 
-import contextlib
 import os
 import subprocess
 import sys
@@ -53,23 +52,7 @@ def test_evaluate_reproduces_the_best_models_training_evaluation(trained):
         moiq_jax.evaluate(result.best_params, moiq_jax.envs.make("cdst"), TINY.preferences)
 
 
-@contextlib.contextmanager
-def compiled_programs():
-    """The names of the programs XLA compiles inside the block (persistent-cache hits included), in order."""
-    names = []
-
-    def listener(event, seconds, **kwargs):
-        if event == "/jax/core/compile/backend_compile_duration":
-            names.append(kwargs.get("fun_name"))
-
-    jax.monitoring.register_event_duration_secs_listener(listener)
-    try:
-        yield names
-    finally:
-        jax.monitoring.unregister_event_duration_listener(listener)
-
-
-def test_evaluate_compiles_once_per_preference_count(trained):
+def test_evaluate_compiles_once_per_preference_count(trained, compiled_programs):
     """Evaluations of one env name, network shape and episode count share one program: parameters and
     preferences are its inputs, so a script evaluating run after run compiles once (per preference count)."""
     others = [[0.3, 0.7], [0.6, 0.4], [0.95, 0.05]]
@@ -87,7 +70,7 @@ def test_evaluate_compiles_once_per_preference_count(trained):
     np.testing.assert_array_equal(five[:3], best)
 
 
-def test_sweeps_of_one_config_share_one_compiled_chunk(tmp_path):
+def test_sweeps_of_one_config_share_one_compiled_chunk(tmp_path, compiled_programs):
     """Checkpointed sweeps of one config that differ only in beta (a script trains beta after beta) compile
     their chunk once, and the reuse carries nothing from one sweep to the next: beta 0 after a beta-5 sweep
     ends bit for bit as the first sweep of beta 0, on a program built afresh, did."""

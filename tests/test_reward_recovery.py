@@ -8,6 +8,7 @@ import optax
 import pytest
 
 import moiq_jax
+from moiq_jax import reward_recovery
 from moiq_jax.algos import actor_critic
 from moiq_jax.networks import networks_of_config
 
@@ -44,6 +45,26 @@ def test_rollout_correlations_read_evaluates_episodes_and_correlate_their_return
         assert measured["episode_reward_correlation"][e] == pytest.approx(expected, abs=1e-9)
     for name in ("episode_reward_correlation", "episode_reward_correlation_objectives", "step_reward_correlation"):
         assert np.all(np.abs(measured[name]) <= 1)
+
+
+def test_runs_of_one_protocol_share_one_compiled_program(hopper, compiled_programs):
+    """Run after run of one protocol (other parameters, seeds and consensus weights, as a table reads them)
+    compiles no new program, and the seed and beta of the config change nothing measured."""
+    params, measured = hopper
+    other, config = fresh_params(HOPPER, seed=1), HOPPER.replace(seed=4, beta=5.0)
+    with compiled_programs() as names:
+        again = moiq_jax.rollout_reward_correlations(params, config, episodes=6, seed=3)
+        new = moiq_jax.rollout_reward_correlations(other, config, episodes=6, seed=7)
+    assert names.count("jit(run)") == 0  # the fixture's program served both
+    for name in measured:
+        np.testing.assert_array_equal(again[name], measured[name])
+    assert not np.array_equal(new["recovered_episode_returns"], measured["recovered_episode_returns"])
+    reward_recovery._rollout_program.cache_clear()
+    with compiled_programs() as names:
+        afresh = moiq_jax.rollout_reward_correlations(other, config, episodes=6, seed=7)
+    assert names.count("jit(run)") == 1
+    for name in new:
+        np.testing.assert_array_equal(afresh[name], new[name])
 
 
 def test_without_absorbing_rollouts_the_episodes_end_at_termination(hopper):
