@@ -15,7 +15,7 @@ HalfCheetah 7 (its 8th step was 0.011 apart in one episode already before the na
 first step from a reset, in the air (a step is compared only while neither side's observation shows a
 contact force). Over ``EPISODES`` random-action episodes of at most
 ``HORIZON`` steps, the mean return vector and mean episode length agree with MO-Gymnasium's to four
-standard errors (plus 1e-3). One compiled ``jit(vmap(scan(step)))`` per task serves both MJX tests.
+standard errors (plus 1e-3). One batched rollout per task, from MO-Gymnasium's resets, serves both MJX tests.
 """
 
 from __future__ import annotations
@@ -305,7 +305,9 @@ def test_native_host_function_is_the_jitted_step(name="mo-ant"):
 
 
 class Rollouts:
-    """One task's compiled batched MJX rollout (MuJoCo's solver settings) and MO-Gymnasium's counterpart."""
+    """One task's batched MJX rollout (MuJoCo's solver settings, one compiled ``jit(vmap(scan(step)))``) of
+    ``EPISODES`` random-action episodes from MO-Gymnasium's own resets (seeds 0, 1, ...), which both MJX tests
+    read: step by step against MO-Gymnasium from the same starts, and in distribution against its own."""
 
     def __init__(self, name: str):
         self.name = name
@@ -323,16 +325,25 @@ class Rollouts:
 
             return jax.lax.scan(body, state, actions)[1]
 
-        self.start = jax.jit(jax.vmap(start))
         self.reset = jax.jit(jax.vmap(self.env.reset))
-        self.rollout = jax.jit(jax.vmap(rollout))
+        gym_env = self.gym()
+        qpos, qvel, first_obs = [], [], []
+        for seed in range(EPISODES):
+            obs, q, v = gym_start(gym_env, seed)
+            qpos.append(q)
+            qvel.append(v)
+            first_obs.append(obs)
+        self.first_obs = np.array(first_obs)
+        keys = jax.random.split(jax.random.key(0), EPISODES)
+        self.start = jax.jit(jax.vmap(start))(keys, jnp.asarray(np.array(qpos), jnp.float32),
+                                              jnp.asarray(np.array(qvel), jnp.float32))
+        rng = np.random.default_rng(1)
+        self.actions = rng.uniform(-1, 1, (EPISODES, HORIZON, self.env.action_size)).astype(np.float32)
+        self.obs, self.reward, self.done, self.truncated = map(
+            np.asarray, jax.jit(jax.vmap(rollout))(self.start, jnp.asarray(self.actions)))
 
     def gym(self):
         return mo_gym.make(self.gym_id, max_episode_steps=HORIZON)
-
-    def actions(self, seed: int) -> np.ndarray:
-        rng = np.random.default_rng(seed)
-        return rng.uniform(-1, 1, (EPISODES, HORIZON, self.env.action_size)).astype(np.float32)
 
 
 @pytest.fixture(scope="module", params=list(CASES))
@@ -352,32 +363,21 @@ def test_mjx_reset_is_the_native_reset(rollouts):
 
 def test_mjx_steps_match_mo_gymnasium(rollouts):
     """Same start states and actions: obs, reward vector, terminated and truncated match step by step."""
+    np.testing.assert_allclose(np.asarray(rollouts.start.obs), rollouts.first_obs, atol=ATOL, rtol=RTOL)
     gym_env = rollouts.gym()
-    qpos, qvel, first_obs = [], [], []
-    for seed in range(EPISODES):
-        obs, q, v = gym_start(gym_env, seed)
-        qpos.append(q)
-        qvel.append(v)
-        first_obs.append(obs)
-    keys = jax.random.split(jax.random.key(0), EPISODES)
-    start = rollouts.start(keys, jnp.asarray(np.array(qpos), jnp.float32), jnp.asarray(np.array(qvel), jnp.float32))
-    np.testing.assert_allclose(np.asarray(start.obs), np.array(first_obs), atol=ATOL, rtol=RTOL)
-    actions = rollouts.actions(seed=1)
-    obs, reward, done, truncated = map(np.asarray, rollouts.rollout(start, jnp.asarray(actions)))
-
     compared = 0
     for i in range(EPISODES):
         gym_env.reset(seed=i)
         for t in range(rollouts.parity_steps):
-            their_obs, their_reward, terminated, their_truncated, _ = gym_env.step(actions[i, t])
+            their_obs, their_reward, terminated, their_truncated, _ = gym_env.step(rollouts.actions[i, t])
             if rollouts.contact_forces is not None and (
-                    their_obs[rollouts.contact_forces].any() or obs[i, t, rollouts.contact_forces].any()):
+                    their_obs[rollouts.contact_forces].any() or rollouts.obs[i, t, rollouts.contact_forces].any()):
                 break  # MJX's contact forces differ from MuJoCo 4.0's: compare the flight before contact
             where = f"{rollouts.name} episode {i} step {t}"
-            np.testing.assert_allclose(obs[i, t], their_obs, atol=ATOL, rtol=RTOL, err_msg=where)
-            np.testing.assert_allclose(reward[i, t], their_reward[rollouts.columns], atol=ATOL, rtol=RTOL,
+            np.testing.assert_allclose(rollouts.obs[i, t], their_obs, atol=ATOL, rtol=RTOL, err_msg=where)
+            np.testing.assert_allclose(rollouts.reward[i, t], their_reward[rollouts.columns], atol=ATOL, rtol=RTOL,
                                        err_msg=where)
-            assert (done[i, t], truncated[i, t]) == (terminated, their_truncated), where
+            assert (rollouts.done[i, t], rollouts.truncated[i, t]) == (terminated, their_truncated), where
             compared += 1
             if terminated:
                 break
@@ -399,11 +399,11 @@ def _agree(ours, theirs, what):
 
 
 def test_mjx_random_rollout_statistics_match_mo_gymnasium(rollouts):
-    """Independent random-action episodes from each side's own resets: mean returns and lengths agree."""
-    start = rollouts.reset(jax.random.split(jax.random.key(1), EPISODES))
-    _, reward, done, truncated = map(np.asarray, rollouts.rollout(start, jnp.asarray(rollouts.actions(seed=2))))
-    assert truncated[:, -1].all() and not truncated[:, :-1].any()  # the time limit, on the last step
-    our_returns, our_lengths = _episode_statistics(reward, done | truncated)
+    """Whole random-action episodes, ours against MO-Gymnasium's independent ones (other resets, other actions):
+    mean returns and lengths agree. Our starts are MO-Gymnasium's resets; that our own resets draw the same
+    noise is ``test_mjx_reset_is_the_native_reset`` and, natively, ``test_reset_noise_matches_gymnasium``."""
+    assert rollouts.truncated[:, -1].all() and not rollouts.truncated[:, :-1].any()  # the time limit, on the last step
+    our_returns, our_lengths = _episode_statistics(rollouts.reward, rollouts.done | rollouts.truncated)
 
     gym_env = rollouts.gym()
     gym_env.action_space.seed(3)
