@@ -1,13 +1,14 @@
 """What an experiment script's smoke run spends compiling, at this checkout and at a baseline commit, in one run.
 
-    python benchmarks/script_compiles.py --baseline COMMIT [--script table1.py] [--suite]
+    python benchmarks/script_compiles.py --baseline COMMIT [--script table1.py] [--suite [--tests PATH ...]]
 
 For this checkout and for ``COMMIT`` (checked out in a temporary git worktree): ``experiments/<script> --quick
 --envs mo-halfcheetah`` in a new process with an empty compilation cache (as on a fresh CI machine) and
 ``JAX_LOG_COMPILES``: wall seconds, the number of programs XLA compiled and their compile seconds, the training
-chunks among them, and the ratios to the baseline. ``--suite`` also runs the README's test command in both trees,
-each from an empty compilation cache. The two trees run one after the other on the same machine: run it on quiet
-cores, or read the ratios with the load the script prints. Results: ``results/suite_time/``.
+chunks among them, and the ratios to the baseline. ``--suite`` also runs the README's test command (on
+``--tests``) in both trees, each from an empty compilation cache. The two trees run one after the other on the
+same machine: run it on quiet cores, or read the ratios with the load the script prints. Results:
+``results/suite_time/``.
 """
 
 from __future__ import annotations
@@ -52,7 +53,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--baseline", required=True, help="the commit to compare with (e.g. main before a change)")
     parser.add_argument("--script", default="table1.py", help="an experiment script with --quick (default table1.py)")
-    parser.add_argument("--suite", action="store_true", help="also the whole test suite in both trees (long)")
+    parser.add_argument("--suite", action="store_true", help="also the README's test command in both trees (long)")
+    parser.add_argument("--tests", nargs="+", default=["tests"], help="what --suite runs (default: the whole suite)")
     args = parser.parse_args()
     head = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
                           check=True).stdout.strip()
@@ -73,9 +75,9 @@ def main() -> None:
                   f"compile seconds {this['compile_seconds'] / base['compile_seconds']:.2f}")
             if args.suite:
                 suite = {label: suite_seconds(lambda cache, tree=tree: environment(tree, cache) | {"JAX_LOG_COMPILES": "0"},
-                                             ["tests"], tree) for label, tree in trees.items()}
+                                             args.tests, tree) for label, tree in trees.items()}
                 for label, (seconds, summary) in suite.items():
-                    print(f"pytest tests, {label}, empty compilation cache: {seconds:.0f} s ({summary})")
+                    print(f"pytest {' '.join(args.tests)}, {label}, empty compilation cache: {seconds:.0f} s ({summary})")
                 (base_s, _), (this_s, _) = suite.values()
                 print(f"  this / baseline: {this_s / base_s:.2f}")
         finally:
