@@ -3,8 +3,9 @@ programs are small and short, so compiling is much of their time, but some (MJX 
 
     python benchmarks/suite_time.py [--tests tests/test_admm.py ...] [--skip-suite]
 
-1. One MuJoCo training chunk (the quick protocol's MOIQ on mo-halfcheetah, as the experiment scripts' smoke runs
-   compile it): seconds to compile at level 3 (XLA's default, as users run) and at level 0, each in a new process.
+1. One MuJoCo training chunk and its ``init`` (the quick protocol's MOIQ on mo-halfcheetah, as the experiment
+   scripts' smoke runs compile them): seconds to compile at level 3 (XLA's default, as users run) and at level 0,
+   each in a new process, and whether ``init`` makes the same state bit for bit at both levels.
 2. The README's test command (or ``--tests``) at level 3 and at level 0, each with an empty compilation cache of
    its own (as on a fresh CI machine): wall seconds and the ratio.
 
@@ -26,20 +27,29 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 LEVELS = (3, 0)
 
 CHUNK_COMPILE = """
-import sys, time
+import hashlib, sys, time
 sys.path.insert(0, {experiments!r})
-import jax, jax.numpy as jnp
+import jax, jax.numpy as jnp, numpy as np
 import paper_mujoco as paper
 from moiq_jax.algos import offpolicy
 from moiq_jax.train import algorithm_of
 config, _ = paper.sweep_of("mo-halfcheetah", "quick", "moiq")
 trainer = offpolicy.make_trainer(config, algorithm_of(config))
 hyper = {{name: jnp.float32(value) for name, value in trainer.hyper.items()}}
-state = jax.jit(trainer.init)(jax.random.PRNGKey(0))
+lowered = jax.jit(trainer.init).lower(jax.random.PRNGKey(0))
+start = time.perf_counter()
+init = lowered.compile()
+print("init", time.perf_counter() - start)
+state = init(jax.random.PRNGKey(0))
+digest = hashlib.sha256()
+for leaf in jax.tree_util.tree_leaves(state):
+    leaf = jax.random.key_data(leaf) if jax.dtypes.issubdtype(leaf.dtype, jax.dtypes.prng_key) else leaf
+    digest.update(np.ascontiguousarray(leaf).tobytes())
+print("state", digest.hexdigest())
 lowered = jax.jit(trainer.run_chunk).lower(state, hyper, trainer.setup)
 start = time.perf_counter()
 lowered.compile()
-print(time.perf_counter() - start)
+print("chunk", time.perf_counter() - start)
 """
 
 
@@ -49,11 +59,15 @@ def environment(level: int, cache: str) -> dict:
             "XLA_FLAGS": " ".join([*flags, f"--xla_backend_optimization_level={level}"])}
 
 
-def chunk_compile_seconds(level: int) -> float:
+def program_compiles(level: int) -> dict:
+    """Compile seconds of the quick chunk's ``init`` and ``chunk`` programs at ``level``, and a digest of the
+    state ``init`` makes (the same at every level only if the level leaves the numbers alone)."""
     script = CHUNK_COMPILE.format(experiments=str(ROOT / "experiments"))
     out = subprocess.run([sys.executable, "-c", script], env=environment(level, ""), capture_output=True, text=True,
                          check=True)
-    return float(out.stdout.strip().splitlines()[-1])
+    fields = dict(line.split(" ", 1) for line in out.stdout.strip().splitlines() if line.split(" ")[0] in
+                  ("init", "state", "chunk"))
+    return {"init": float(fields["init"]), "chunk": float(fields["chunk"]), "state": fields["state"]}
 
 
 def suite_seconds(env_of, tests: list[str], tree: pathlib.Path = ROOT) -> tuple[float, str]:
@@ -75,10 +89,13 @@ def main() -> None:
     parser.add_argument("--skip-suite", action="store_true", help="only the chunk's compile times")
     args = parser.parse_args()
     print(f"uptime before: {os.getloadavg()}")
-    compile_times = {level: chunk_compile_seconds(level) for level in LEVELS}
-    for level, seconds in compile_times.items():
-        print(f"quick MOIQ chunk on mo-halfcheetah, compiled at level {level}: {seconds:.1f} s")
-    print(f"  level 0 / level 3: {compile_times[0] / compile_times[3]:.2f}")
+    compiles = {level: program_compiles(level) for level in LEVELS}
+    for program in ("chunk", "init"):
+        for level, times in compiles.items():
+            print(f"quick MOIQ {program} on mo-halfcheetah, compiled at level {level}: {times[program]:.1f} s")
+        print(f"  level 0 / level 3: {compiles[0][program] / compiles[3][program]:.2f}")
+    same = compiles[0]["state"] == compiles[3]["state"]
+    print(f"init's state at level 0 {'is' if same else 'is not'} bit-identical to level 3's")
     if not args.skip_suite:
         suite = {}
         for level in LEVELS:
