@@ -61,7 +61,6 @@ def rollout_reward_correlations(params, config: Config, episodes: int = 100, see
     ``[E]``; the scalarised returns themselves, ``episode_returns`` and ``recovered_episode_returns``
     ``[E, episodes]``. A correlation is NaN where a side does not vary (a deterministic env and policy repeat
     one episode)."""
-    _reward_learner(config, "rollout_reward_correlations")
     run = _rollout_program(config.replace(seed=0, beta=0.0), episodes)
     preferences = jnp.asarray(config.preferences, jnp.float32)
     recovered, true, alive = (np.asarray(x) for x in run(params, preferences, jax.random.PRNGKey(seed)))
@@ -83,7 +82,7 @@ def _rollout_program(config: Config, episodes: int):
     config up to its seed and consensus weight (neither enters it; the caller sets both to one value): a
     table's runs of one protocol share one compiled program (a MuJoCo env steps by a host callback, which JAX's
     persistent compilation cache cannot keep)."""
-    algorithm = algorithm_of(config)
+    algorithm = _reward_learner(config, "rollout_reward_correlations")
     env = config.make_env(absorbing=True)
     env = env if config.offpolicy.absorbing_rollouts else DoneOnAbsorption(env)
     nets = networks_of_config(config.offpolicy, env)
