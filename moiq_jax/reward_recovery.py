@@ -1,7 +1,8 @@
 """How well a trained inverse soft-Q learner (moiq, iq_learn) recovers the true reward: Pearson correlations of
 its recovered reward (the critic loss's own, ``moiq.recovered_reward_fn``) with the true one, on the
 demonstrations (``reward_correlations``: what the training evaluations record) or along the trained policy's own
-episodes (``rollout_reward_correlations``: the measure of IQ-Learn's code, on which the paper's is built)."""
+episodes (``rollout_reward_correlations``: the measure of IQ-Learn's code, on which the paper's is built), and
+those episodes themselves with both rewards (``policy_episodes``)."""
 
 from __future__ import annotations
 
@@ -52,20 +53,18 @@ def reward_correlations(params, config: Config, demos: Demonstrations | None = N
 
 
 def rollout_reward_correlations(params, config: Config, episodes: int = 100, seed: int = 0) -> dict:
-    """How well trained ``params`` recover the true reward along their own policy's episodes: for each expert's
-    preference, ``episodes`` episodes of the deterministic policy (those of ``evaluate(params, ..., episodes,
-    seed)``) in the env it trained in (going on in the absorbing state to the time limit, or ending at
-    termination without ``absorbing_rollouts``), and across them the Pearson correlation of the recovered and
+    """How well trained ``params`` recover the true reward along their own policy's episodes (``policy_episodes``):
+    for each expert's preference, across its ``episodes`` episodes, the Pearson correlation of the recovered and
     the true episode returns, scalarised (``episode_reward_correlation`` ``[E]``) and per objective
     (``episode_reward_correlation_objectives`` ``[E, d]``); over all their steps, ``step_reward_correlation``
     ``[E]``; the scalarised returns themselves, ``episode_returns`` and ``recovered_episode_returns``
     ``[E, episodes]``. A correlation is NaN where a side does not vary (a deterministic env and policy repeat
     one episode)."""
-    run = _rollout_program(config.replace(seed=0, beta=0.0), episodes)
-    preferences = jnp.asarray(config.preferences, jnp.float32)
-    recovered, true, alive = (np.asarray(x) for x in run(params, preferences, jax.random.PRNGKey(seed)))
-    prefs = np.asarray(preferences, np.float64)
-    recovered, true = (np.where(alive[..., None], x, 0.0).astype(np.float64) for x in (recovered, true))  # [E, N, T, d]
+    steps = policy_episodes(params, config, episodes, seed)
+    alive = steps["alive"]
+    prefs = np.asarray(config.preferences, np.float64)
+    recovered, true = (np.where(alive[..., None], steps[k], 0.0).astype(np.float64)
+                       for k in ("recovered_reward", "reward"))  # [E, N, T, d]
     recovered_returns, true_returns = recovered.sum(2), true.sum(2)  # [E, N, d]
     scalar = lambda x: np.einsum("e...d,ed->e...", x, prefs)
     on_steps = lambda x: [row[a] for row, a in zip(scalar(x), alive)]  # each expert's steps of its episodes
@@ -76,13 +75,25 @@ def rollout_reward_correlations(params, config: Config, episodes: int = 100, see
             "episode_returns": scalar(true_returns), "recovered_episode_returns": scalar(recovered_returns)}
 
 
+def policy_episodes(params, config: Config, episodes: int = 100, seed: int = 0) -> dict[str, np.ndarray]:
+    """Trained ``params``' own episodes at each expert's preference, those of ``evaluate(params, ...,
+    episodes, seed)`` (the deterministic policy), in the env it trained in: every step to the time limit as
+    arrays ``[E, episodes, T, ...]``: ``obs``, ``action``, ``reward`` (true, vector), ``recovered_reward`` (the
+    critic loss's own, vector) and ``alive`` (the step belongs to the episode: with ``absorbing_rollouts``
+    every step does, those in the absorbing state after a termination too (their observation's last entry is
+    1); without, the episode ends at its termination)."""
+    run = _rollout_program(config.replace(seed=0, beta=0.0), episodes)
+    return {k: np.asarray(v) for k, v in run(params, jnp.asarray(config.preferences, jnp.float32),
+                                             jax.random.PRNGKey(seed)).items()}
+
+
 @functools.lru_cache(maxsize=4)
 def _rollout_program(config: Config, episodes: int):
-    """``fn(params, preferences, key) -> (recovered, true, alive)`` ``[E, episodes, T, ..]`` jitted once per
-    config up to its seed and consensus weight (neither enters it; the caller sets both to one value): a
-    table's runs of one protocol share one compiled program (a MuJoCo env steps by a host callback, which JAX's
-    persistent compilation cache cannot keep)."""
-    algorithm = _reward_learner(config, "rollout_reward_correlations")
+    """``fn(params, preferences, key) -> policy_episodes``' arrays, jitted once per config up to its seed and
+    consensus weight (neither enters it; the caller sets both to one value): a table's runs of one protocol
+    share one compiled program (a MuJoCo env steps by a host callback, which JAX's persistent compilation cache
+    cannot keep)."""
+    algorithm = _reward_learner(config, "policy_episodes (and rollout_reward_correlations)")
     env = config.make_env(absorbing=True)
     env = env if config.offpolicy.absorbing_rollouts else DoneOnAbsorption(env)
     nets = networks_of_config(config.offpolicy, env)
@@ -94,7 +105,9 @@ def _rollout_program(config: Config, episodes: int):
         flat = lambda x: x.reshape(x.shape[0], -1, *x.shape[3:])
         data = {"obs": flat(steps["obs"]), "action": flat(steps["action"]), "next_obs": flat(steps["next_obs"]),
                 "done": flat(steps["done"]).astype(jnp.float32)}
-        return rewards_of(p, data, prefs, value_key).reshape(steps["reward"].shape), steps["reward"], steps["alive"]
+        recovered = rewards_of(p, data, prefs, value_key).reshape(steps["reward"].shape)
+        return {"obs": steps["obs"], "action": steps["action"], "reward": steps["reward"],
+                "recovered_reward": recovered, "alive": steps["alive"]}
 
     def run(params, preferences, key):
         keys = jax.random.split(key, preferences.shape[0])  # evaluate's episodes

@@ -47,6 +47,26 @@ def test_rollout_correlations_read_evaluates_episodes_and_correlate_their_return
         assert np.all(np.abs(measured[name]) <= 1)
 
 
+def test_policy_episodes_are_evaluates_then_the_absorbing_states(hopper):
+    """The episodes' steps give ``evaluate``'s vector returns; after the (early) fall every step is the
+    absorbing state's (flagged in the observation's last entry): one observation and one action per
+    preference, no true reward, and a recovered reward of its own."""
+    params, _ = hopper
+    steps = moiq_jax.policy_episodes(params, HOPPER, episodes=6, seed=3)
+    assert steps["obs"].shape[:3] == steps["recovered_reward"].shape[:3] == steps["alive"].shape == (3, 6, 1000)
+    assert steps["alive"].all()  # the absorbing state's steps belong to the episode, to the time limit
+    evaluated = moiq_jax.evaluate(params, "mo-hopper", HOPPER.preferences, episodes=6, seed=3)
+    np.testing.assert_allclose(steps["reward"].sum(2).mean(1), evaluated, rtol=1e-5, atol=1e-4)
+    absorbed = steps["obs"][..., -1] == 1
+    assert np.all(absorbed.sum(2) > 0) and np.all(absorbed[..., 0] == 0)  # every episode falls, none at once
+    for e in range(3):
+        for name in ("obs", "action"):
+            after = steps[name][e][absorbed[e]]
+            np.testing.assert_allclose(after, np.broadcast_to(after[0], after.shape), atol=1e-6)
+        assert np.all(steps["reward"][e][absorbed[e]] == 0)
+        assert not np.allclose(steps["recovered_reward"][e][~absorbed[e]], steps["recovered_reward"][e][absorbed[e]][0])
+
+
 def test_runs_of_one_protocol_share_one_compiled_program(hopper, compiled_programs):
     """Run after run of one protocol (other parameters, seeds and consensus weights, as a table reads them)
     compiles no new program, and the seed and beta of the config change nothing measured."""
@@ -82,5 +102,6 @@ def test_a_repeated_episode_has_no_correlation_and_other_learners_are_refused():
     assert np.all(np.ptp(measured["episode_returns"], axis=1) == 0)
     assert np.all(np.isnan(measured["episode_reward_correlation"]))
     assert np.all(np.isnan(measured["episode_reward_correlation_objectives"]))
-    with pytest.raises(ValueError, match="gail does not recover its reward from the critic; rollout_reward_correlations"):
-        moiq_jax.rollout_reward_correlations(fresh_params(config), config.replace(algo="gail"))
+    for measure in (moiq_jax.rollout_reward_correlations, moiq_jax.policy_episodes):
+        with pytest.raises(ValueError, match="gail does not recover its reward from the critic; policy_episodes"):
+            measure(fresh_params(config), config.replace(algo="gail"))
