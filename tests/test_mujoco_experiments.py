@@ -229,6 +229,51 @@ def test_paper_summary_tells_rows_made_from_replaced_demonstrations():
                                                             "| q | 0.5 | 0 of 1 | mo-ant |"]
 
 
+def test_imitation_gap_reads_the_kept_runs(outputs):
+    """imitation_gap.py measures each kept run's best model against its experts without training: the return
+    ratio is the model's own return over the committed demonstrations', the shares and lengths are in range."""
+    tmp_path, _ = outputs
+    printed = run("imitation_gap.py", tmp_path, "--no-train", "--betas", "0.5")
+    assert "trained" not in printed
+    record = json.loads((tmp_path / "mujoco_quick" / "imitation_gap" / "imitation_gap.json").read_text())
+    sys.path.insert(0, str(ROOT / "experiments"))
+    import paper_mujoco as paper
+
+    experts = paper.expert_returns("mo-halfcheetah")
+    rows = record["rows"]
+    assert [(r["seed"], r["preference"]) for r in rows] == [(s, list(w)) for s in (0, 1)
+                                                            for w in ((0.9, 0.1), (0.5, 0.5), (0.1, 0.9))]
+    for e, r in enumerate(rows):
+        assert r["expert_return"] == pytest.approx(float(experts[e % 3] @ np.asarray(r["preference"])), abs=0.1)
+        if abs(r["expert_return"]) > 10:  # the standing expert's -0.24 is rounded to -0.2 in the row
+            assert r["ratio"] == pytest.approx(r["own_return"] / r["expert_return"], rel=2e-3, abs=2e-3)
+        assert 0 <= r["on_demo_share"] <= 1 and 0 < r["live_steps"] <= 1000 and r["action_gap"] > 0
+
+
+def test_demo_spread_is_the_demonstrations_own():
+    """A state is within the demonstrations' spread up to their own leave-one-episode-out distances: about 95% of
+    the states of one more demonstration are, few of those of a policy beside them are; the nearest distances
+    are the brute-force ones."""
+    sys.path.insert(0, str(ROOT / "experiments"))
+    import imitation_gap
+
+    rng = np.random.default_rng(0)
+    points, reference = rng.normal(size=(300, 4)), rng.normal(size=(500, 4))
+    brute = np.sqrt(((points[:, None] - reference[None]) ** 2).sum(-1))
+    np.testing.assert_allclose(imitation_gap.nearest_distances(points, reference, chunk=64), brute.min(1), rtol=1e-9)
+    groups, point_groups = np.arange(500) % 5, np.arange(300) % 5
+    brute[point_groups[:, None] == groups[None]] = np.inf
+    np.testing.assert_allclose(imitation_gap.nearest_distances(points, reference, groups, point_groups, chunk=64),
+                               brute.min(1), rtol=1e-9)
+    scale = np.asarray([1.0, 10.0, 0.1, 1.0, 1.0])
+    episode = lambda n, shift=0.0: np.concatenate([(rng.normal(size=(n, 200, 5)) + shift) * scale,
+                                                   np.zeros((n, 200, 1))], -1)  # live states: absorbing flag 0
+    within = imitation_gap.demo_spread(episode(10))
+    another = within(episode(1).reshape(-1, 6)).mean()  # one more demonstration: as near as they are to each other
+    assert 0.85 <= another <= 1.0
+    assert within(episode(1, shift=2.0).reshape(-1, 6)).mean() < 0.3  # a policy beside the demonstrations
+
+
 def test_a_missing_run_is_trained_alone_and_a_foreign_one_refused(outputs):
     tmp_path, _ = outputs
     archive = tmp_path / "archive"
