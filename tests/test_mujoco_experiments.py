@@ -352,6 +352,22 @@ def test_run_summary_reads_what_the_runs_recorded(outputs):
         assert float(run[0]["penalty_peak"]) == pytest.approx(history["penalty"].max(), abs=1e-3)
     assert "mo-halfcheetah  beta5-seed1" in out.stdout
 
+    from moiq_jax.archive import load_result
+    from moiq_jax.cli import _write_history
+
+    kept = load_result(archive / "mo-halfcheetah-moiq" / "beta0.5-seed0")  # the same run as `moiq train` logs it
+    run_dir = tmp_path / "logged" / "pilot"
+    _write_history(str(run_dir), kept.config, kept, np.asarray(kept.history["env_steps"]))
+    out = subprocess.run([sys.executable, str(ROOT / "experiments" / "run_summary.py"), "--run-dirs", str(run_dir),
+                          "--csv", str(tmp_path / "logged.csv")], capture_output=True, text=True, timeout=300,
+                         env={**os.environ, "PYTHONPATH": str(ROOT)}, check=False)
+    assert out.returncode == 0, out.stderr[-3000:]
+    with open(tmp_path / "logged.csv") as f:
+        logged = list(csv.DictReader(f))
+    same = lambda row: {k: v for k, v in row.items() if k not in ("run", "seconds")}
+    assert [same(r) for r in logged] == [same(r) for r in rows if r["run"] == "beta0.5-seed0"]
+    assert {(r["run"], r["seconds"]) for r in logged} == {("pilot", "")}  # `moiq train` does not log its wall time
+
 
 @pytest.mark.parametrize("protocol", ["paper", "cpu", "cpu_recipe", "cpu_recipe_online_penalty"])
 def test_each_protocol_configures_what_its_record_names(protocol):
