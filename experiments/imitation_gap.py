@@ -60,44 +60,42 @@ def demo_spread(demo_obs: np.ndarray):
     demonstrations ``demo_obs`` [episodes, T, D] (live steps only; see the module's docstring)."""
     episodes, steps, _ = demo_obs.shape
     live = demo_obs[..., -1] == 0  # the absorbing flag
-    scale = np.maximum(demo_obs[live][:, :-1].std(0), 1e-6)
+    states = demo_obs[live]
+    scale = np.maximum(states[:, :-1].std(0), 1e-6)
     standard = lambda x: x[:, :-1] / scale
-    reference = standard(demo_obs[live].astype(np.float64))
+    reference = standard(states.astype(np.float64))
     groups = np.broadcast_to(np.arange(episodes)[:, None], (episodes, steps))[live]
     threshold = np.quantile(nearest_distances(reference, reference, groups, groups), WITHIN_QUANTILE)
     return lambda states: nearest_distances(standard(states.astype(np.float64)), reference) <= threshold
 
 
-def run_gaps(run, episodes: int) -> list[dict]:
-    """The measures of the module's docstring for one kept run's best model, one dict per preference."""
+def run_gaps(run, episodes: int, demos: dict, spreads: list) -> list[dict]:
+    """The measures of the module's docstring for one kept run's best model, one dict per preference, against its
+    task's demonstrations ``demos`` (``expert_transitions``) and their ``spreads`` (``demo_spread``, per expert)."""
     config = run.config
     params = run.best_params
-    env = config.make_env(absorbing=True)
-    nets = networks_of_config(config.offpolicy, env)
-    demos = expert_transitions(load_demonstrations(config, env))  # [E, M, ...], each expert's episodes in turn
+    nets = networks_of_config(config.offpolicy, config.make_env(absorbing=True))
     prefs = np.asarray(config.preferences, np.float32)
     demo_rewards = moiq.recovered_reward_fn(config, nets)(params, {k: jnp.asarray(v) for k, v in demos.items()},
                                                            jnp.asarray(prefs), jax.random.PRNGKey(0))
     own = moiq_jax.policy_episodes(params, config, episodes)
     rows = []
-    for e, w in enumerate(prefs):
-        demo_obs = demos["obs"][e].reshape(config.num_demos, -1, demos["obs"].shape[-1])
+    for e, (w, within) in enumerate(zip(prefs, spreads)):
         expert_return = float(demos["true_reward"][e].sum(0) @ w) / config.num_demos
-        within = demo_spread(demo_obs)
+        own_return = float(own["reward"][e].sum(1).mean(0) @ w)
         obs = own["obs"][e]  # [N, T, D]
         live = obs[..., -1] == 0
-        on_demos = within(obs[live])
         expert_actions = jnp.asarray(demos["action"][e])
         actions = nets.act(params.actor, jnp.asarray(demos["obs"][e]), jnp.asarray(w))
         rows.append({
-            "ratio": round(float(own["reward"][e].sum(1).mean(0) @ w) / expert_return, 3),
-            "own_return": round(float(own["reward"][e].sum(1).mean(0) @ w), 1),
+            "ratio": round(own_return / expert_return, 3),
+            "own_return": round(own_return, 1),
             "expert_return": round(expert_return, 1),
             "live_steps": round(float(live.sum(1).mean()), 1),
             "recovered_demos": round(float(np.asarray(demo_rewards[e]).sum(0) @ w) / config.num_demos, 1),
             "recovered_own": round(float(own["recovered_reward"][e].sum(1).mean(0) @ w), 1),
             "action_gap": round(float(jnp.abs(actions - expert_actions).mean() / jnp.abs(expert_actions).mean()), 3),
-            "on_demo_share": round(float(on_demos.mean()), 3),
+            "on_demo_share": round(float(within(obs[live]).mean()), 3),
         })
     return rows
 
@@ -115,10 +113,13 @@ def main() -> None:
     rows = []
     for env in args.envs:
         result = paper.task_sweep(env, args, betas=tuple(args.betas))
+        config = result.config  # every run's demonstrations are the task's: loaded, and their spreads found, once
+        demos = expert_transitions(load_demonstrations(config, config.make_env(absorbing=True)))  # [E, M, ...]
+        spreads = [demo_spread(obs.reshape(config.num_demos, -1, obs.shape[-1])) for obs in demos["obs"]]
         for beta in args.betas:
             for r in paper.runs_of(result, beta):
                 run = result.run(r)
-                for w, row in zip(result.config.preferences, run_gaps(run, episodes)):
+                for w, row in zip(config.preferences, run_gaps(run, episodes, demos, spreads)):
                     rows.append({"env": env, "preference": list(w), "beta": beta, "seed": int(run.config.seed), **row})
                     print(f"{env:<17} {list(w)!s:<16} beta {beta:g} seed {run.config.seed}: return {row['ratio']:6.3f} of the "
                           f"expert, live {row['live_steps']:6.1f} steps | recovered return demos {row['recovered_demos']:9.1f} "
