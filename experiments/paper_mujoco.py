@@ -75,8 +75,10 @@ for _table in (PAPER_TABLE1, PAPER_TABLE2, PAPER_TABLE3):
 # 3e-5) and the chi^2 regulariser at both the rows' and the policy's actions, which keeps that recipe from
 # running away; about an hour of one core per run. "cpu_recipe_online_penalty": cpu_recipe with the consensus
 # penalty's V(s') from the online critic (``penalty_online``), which keeps the penalty from climbing with the
-# target critic. The pilots that chose them are in results/mujoco_cpu/README.md and
-# results/mujoco_cpu_recipe/README.md.
+# target critic. "cpu_recipe_fast_actor": cpu_recipe_online_penalty with the actor learning rate 3e-4, which
+# held the mo-hopper's standing expert where 3e-5 lost it. The pilots that chose them are in
+# results/mujoco_cpu/README.md, results/mujoco_cpu_recipe/README.md and
+# results/mujoco_cpu_recipe_online_penalty/README.md.
 IQ_LEARN_DEFAULTS = {"learn_alpha": False, "init_alpha": 0.01, "use_target": False}
 _CPU_SIZES = {"hidden_sizes": (128, 128), "batch_size": 128, "num_envs": 8, "updates_per_step": 8,
               "learning_starts": 5_000, "eval_interval": 5_000, "eval_episodes": 5}
@@ -88,6 +90,7 @@ PROTOCOLS = {
     "cpu": {**_CPU_SIZES, "total_steps": 100_000, "buffer_size": 100_000, "actor_lr": 3e-4},
     "cpu_recipe": _CPU_RECIPE,
     "cpu_recipe_online_penalty": {**_CPU_RECIPE, "penalty_online": True},
+    "cpu_recipe_fast_actor": {**_CPU_RECIPE, "penalty_online": True, "actor_lr": 3e-4},
     "quick": {"total_steps": 64, "num_envs": 16, "updates_per_step": 1, "learning_starts": 16, "eval_interval": 64,
               "eval_episodes": 1, "buffer_size": 64, "hidden_sizes": (16, 16), "batch_size": 16},
 }
@@ -151,7 +154,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--protocol", default="cpu", choices=[p for p in PROTOCOLS if p != "quick"],
                         help="cpu: sized for the 2-core CPU machine; cpu_recipe: 3x its steps with IQ-Learn's "
                              "MuJoCo critic recipe; cpu_recipe_online_penalty: that with the consensus "
-                             "penalty on the online critic; paper: the paper's (for an accelerator)")
+                             "penalty on the online critic; cpu_recipe_fast_actor: that with actor lr 3e-4; "
+                             "paper: the paper's (for an accelerator)")
     parser.add_argument("--quick", action="store_true", help="a tiny run of every step (CI smoke test)")
     parser.add_argument("--cache", default="results/mujoco/sweeps",
                         help="where the sweeps are trained (checkpointed, resumable), per protocol")

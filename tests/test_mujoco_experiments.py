@@ -369,7 +369,8 @@ def test_run_summary_reads_what_the_runs_recorded(outputs):
     assert {(r["run"], r["seconds"]) for r in logged} == {("pilot", "")}  # `moiq train` does not log its wall time
 
 
-@pytest.mark.parametrize("protocol", ["paper", "cpu", "cpu_recipe", "cpu_recipe_online_penalty"])
+@pytest.mark.parametrize("protocol",
+                         ["paper", "cpu", "cpu_recipe", "cpu_recipe_online_penalty", "cpu_recipe_fast_actor"])
 def test_each_protocol_configures_what_its_record_names(protocol):
     """Every protocol's MOIQ config holds each setting its output files name, and GAIL under it keeps the paper's
     Table 4 generator (twin critics, target critic) whatever critic recipe MOIQ uses."""
@@ -388,6 +389,8 @@ def test_each_protocol_configures_what_its_record_names(protocol):
     online_penalty = paper.moiq_config("mo-hopper", "cpu_recipe_online_penalty").to_dict()
     assert {k for k in recipe if online_penalty[k] != recipe[k]} == {"penalty_online"}  # the one difference
     assert (online_penalty["penalty_online"], recipe["penalty_online"]) == (True, False)
+    fast_actor = paper.moiq_config("mo-hopper", "cpu_recipe_fast_actor").to_dict()
+    assert {k: fast_actor[k] for k in fast_actor if fast_actor[k] != online_penalty[k]} == {"actor_lr": 3e-4}
 
 
 def test_figure2_shares_gail_runs_only_between_protocols_that_configure_gail_alike():
@@ -401,7 +404,8 @@ def test_figure2_shares_gail_runs_only_between_protocols_that_configure_gail_ali
     args = argparse.Namespace(protocol="cpu_recipe_online_penalty", gail_protocol="cpu_recipe", quick=False,
                               archive="elsewhere", seeds=1)
     for env in paper.TASKS:
-        assert paper.gail_config(env, "cpu_recipe") == paper.gail_config(env, "cpu_recipe_online_penalty")
+        assert paper.gail_config(env, "cpu_recipe") == paper.gail_config(env, "cpu_recipe_online_penalty") == \
+            paper.gail_config(env, "cpu_recipe_fast_actor")
         shared = figure2.gail_args(args, env)
         assert (shared.protocol, shared.archive, args.protocol) == ("cpu_recipe", None, "cpu_recipe_online_penalty")
         assert paper.archive_of(shared) == pathlib.Path("results/mujoco_cpu_recipe/runs")
