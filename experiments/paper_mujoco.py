@@ -84,13 +84,14 @@ _CPU_SIZES = {"hidden_sizes": (128, 128), "batch_size": 128, "num_envs": 8, "upd
               "learning_starts": 5_000, "eval_interval": 5_000, "eval_episodes": 5}
 _CPU_RECIPE = {**_CPU_SIZES, "total_steps": 300_000, "buffer_size": 300_000, "actor_lr": 3e-5, "num_critics": 1,
                "use_target": True, "regulariser": "both"}
+_CPU_RECIPE_ONLINE_PENALTY = {**_CPU_RECIPE, "penalty_online": True}
 PROTOCOLS = {
     "paper": {"total_steps": 499_200, "num_envs": 16, "updates_per_step": 16, "learning_starts": 4_992,
               "eval_interval": 4_992, "eval_episodes": 10, "buffer_size": 499_200},
     "cpu": {**_CPU_SIZES, "total_steps": 100_000, "buffer_size": 100_000, "actor_lr": 3e-4},
     "cpu_recipe": _CPU_RECIPE,
-    "cpu_recipe_online_penalty": {**_CPU_RECIPE, "penalty_online": True},
-    "cpu_recipe_fast_actor": {**_CPU_RECIPE, "penalty_online": True, "actor_lr": 3e-4},
+    "cpu_recipe_online_penalty": _CPU_RECIPE_ONLINE_PENALTY,
+    "cpu_recipe_fast_actor": {**_CPU_RECIPE_ONLINE_PENALTY, "actor_lr": 3e-4},
     "quick": {"total_steps": 64, "num_envs": 16, "updates_per_step": 1, "learning_starts": 16, "eval_interval": 64,
               "eval_episodes": 1, "buffer_size": 64, "hidden_sizes": (16, 16), "batch_size": 16},
 }
