@@ -60,10 +60,10 @@ def demo_spread(demo_obs: np.ndarray):
     demonstrations ``demo_obs`` [episodes, T, D] (live steps only; see the module's docstring)."""
     episodes, steps, _ = demo_obs.shape
     live = demo_obs[..., -1] == 0  # the absorbing flag
-    states = demo_obs[live]
-    scale = np.maximum(states[:, :-1].std(0), 1e-6)
+    live_states = demo_obs[live]
+    scale = np.maximum(live_states[:, :-1].std(0), 1e-6)
     standard = lambda x: x[:, :-1] / scale
-    reference = standard(states.astype(np.float64))
+    reference = standard(live_states.astype(np.float64))
     groups = np.broadcast_to(np.arange(episodes)[:, None], (episodes, steps))[live]
     threshold = np.quantile(nearest_distances(reference, reference, groups, groups), WITHIN_QUANTILE)
     return lambda states: nearest_distances(standard(states.astype(np.float64)), reference) <= threshold
