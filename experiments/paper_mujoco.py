@@ -77,7 +77,8 @@ for _table in (PAPER_TABLE1, PAPER_TABLE2, PAPER_TABLE3):
 # penalty's V(s') from the online critic (``penalty_online``), which keeps the penalty from climbing with the
 # target critic. "cpu_recipe_fast_actor": cpu_recipe_online_penalty with the actor learning rate 3e-4, which
 # held the mo-hopper's standing expert where 3e-5 lost it but slowed the halfcheetah; "cpu_recipe_mid_actor":
-# the actor learning rate between them (1e-4), one rate for every task. The pilots that chose them are in
+# the actor learning rate between them (1e-4), one rate for every task. "cpu_recipe_long":
+# cpu_recipe_online_penalty for the paper's 500K env steps per expert (about 1.7x its time). The pilots that chose them are in
 # results/mujoco_cpu/README.md, results/mujoco_cpu_recipe/README.md and
 # results/mujoco_cpu_recipe_online_penalty/README.md.
 IQ_LEARN_DEFAULTS = {"learn_alpha": False, "init_alpha": 0.01, "use_target": False}
@@ -94,6 +95,7 @@ PROTOCOLS = {
     "cpu_recipe_online_penalty": _CPU_RECIPE_ONLINE_PENALTY,
     "cpu_recipe_fast_actor": {**_CPU_RECIPE_ONLINE_PENALTY, "actor_lr": 3e-4},
     "cpu_recipe_mid_actor": {**_CPU_RECIPE_ONLINE_PENALTY, "actor_lr": 1e-4},
+    "cpu_recipe_long": {**_CPU_RECIPE_ONLINE_PENALTY, "total_steps": 500_000, "buffer_size": 500_000},
     "quick": {"total_steps": 64, "num_envs": 16, "updates_per_step": 1, "learning_starts": 16, "eval_interval": 64,
               "eval_episodes": 1, "buffer_size": 64, "hidden_sizes": (16, 16), "batch_size": 16},
 }
@@ -158,7 +160,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="cpu: sized for the 2-core CPU machine; cpu_recipe: 3x its steps with IQ-Learn's "
                              "MuJoCo critic recipe; cpu_recipe_online_penalty: that with the consensus "
                              "penalty on the online critic; cpu_recipe_fast_actor / _mid_actor: that with actor lr "
-                             "3e-4 / 1e-4; paper: the paper's (for an accelerator)")
+                             "3e-4 / 1e-4; cpu_recipe_long: that for 500K steps; paper: the paper's (for an accelerator)")
     parser.add_argument("--quick", action="store_true", help="a tiny run of every step (CI smoke test)")
     parser.add_argument("--cache", default="results/mujoco/sweeps",
                         help="where the sweeps are trained (checkpointed, resumable), per protocol")

@@ -371,7 +371,7 @@ def test_run_summary_reads_what_the_runs_recorded(outputs):
 
 @pytest.mark.parametrize("protocol",
                          ["paper", "cpu", "cpu_recipe", "cpu_recipe_online_penalty", "cpu_recipe_fast_actor",
-                          "cpu_recipe_mid_actor"])
+                          "cpu_recipe_mid_actor", "cpu_recipe_long"])
 def test_each_protocol_configures_what_its_record_names(protocol):
     """Every protocol's MOIQ config holds each setting its output files name, and GAIL under it keeps the paper's
     Table 4 generator (twin critics, target critic) whatever critic recipe MOIQ uses."""
@@ -394,6 +394,8 @@ def test_each_protocol_configures_what_its_record_names(protocol):
     assert {k: fast_actor[k] for k in fast_actor if fast_actor[k] != online_penalty[k]} == {"actor_lr": 3e-4}
     mid_actor = paper.moiq_config("mo-hopper", "cpu_recipe_mid_actor").to_dict()
     assert {k: mid_actor[k] for k in mid_actor if mid_actor[k] != online_penalty[k]} == {"actor_lr": 1e-4}
+    long = paper.moiq_config("mo-hopper", "cpu_recipe_long").to_dict()
+    assert {k: long[k] for k in long if long[k] != online_penalty[k]} == {"total_steps": 500_000, "buffer_size": 500_000}
 
 
 def test_figure2_shares_gail_runs_only_between_protocols_that_configure_gail_alike():
