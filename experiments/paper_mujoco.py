@@ -78,9 +78,8 @@ for _table in (PAPER_TABLE1, PAPER_TABLE2, PAPER_TABLE3):
 # target critic. "cpu_recipe_fast_actor": cpu_recipe_online_penalty with the actor learning rate 3e-4, which
 # held the mo-hopper's standing expert where 3e-5 lost it but slowed the halfcheetah; "cpu_recipe_mid_actor":
 # the actor learning rate between them (1e-4), one rate for every task. "cpu_recipe_long":
-# cpu_recipe_online_penalty for the paper's 500K env steps per expert (about 1.7x its time). The pilots that chose them are in
-# results/mujoco_cpu/README.md, results/mujoco_cpu_recipe/README.md and
-# results/mujoco_cpu_recipe_online_penalty/README.md.
+# cpu_recipe_online_penalty for the paper's 500K env steps per expert (about 1.7x its time). The pilots that
+# chose them are in results/mujoco_<protocol>/README.md.
 IQ_LEARN_DEFAULTS = {"learn_alpha": False, "init_alpha": 0.01, "use_target": False}
 _CPU_SIZES = {"hidden_sizes": (128, 128), "batch_size": 128, "num_envs": 8, "updates_per_step": 8,
               "learning_starts": 5_000, "eval_interval": 5_000, "eval_episodes": 5}
