@@ -384,18 +384,28 @@ def test_each_protocol_configures_what_its_record_names(protocol):
         for name, value in paper.protocol_settings(protocol).items():
             assert moiq[name] == value, (env, name)
         assert (gail["num_critics"], gail["use_target"], gail["actor_lr"], gail["tau"]) == (2, True, 3e-4, 0.05)
+
+
+def test_each_cpu_recipe_protocol_differs_from_its_base_in_what_its_name_says():
+    """cpu_recipe is IQ-Learn's MuJoCo critic recipe for 300K steps; each later protocol changes one thing of
+    cpu_recipe_online_penalty (the penalty's online critic, the actor rate, the step count) and nothing else."""
+    sys.path.insert(0, str(ROOT / "experiments"))
+    import paper_mujoco as paper
+
     recipe = paper.moiq_config("mo-hopper", "cpu_recipe").to_dict()
     assert (recipe["num_critics"], recipe["use_target"], recipe["regulariser"], recipe["total_steps"]) == (
         1, True, "both", 300_000)
     online_penalty = paper.moiq_config("mo-hopper", "cpu_recipe_online_penalty").to_dict()
     assert {k for k in recipe if online_penalty[k] != recipe[k]} == {"penalty_online"}  # the one difference
     assert (online_penalty["penalty_online"], recipe["penalty_online"]) == (True, False)
-    fast_actor = paper.moiq_config("mo-hopper", "cpu_recipe_fast_actor").to_dict()
-    assert {k: fast_actor[k] for k in fast_actor if fast_actor[k] != online_penalty[k]} == {"actor_lr": 3e-4}
-    mid_actor = paper.moiq_config("mo-hopper", "cpu_recipe_mid_actor").to_dict()
-    assert {k: mid_actor[k] for k in mid_actor if mid_actor[k] != online_penalty[k]} == {"actor_lr": 1e-4}
-    long = paper.moiq_config("mo-hopper", "cpu_recipe_long").to_dict()
-    assert {k: long[k] for k in long if long[k] != online_penalty[k]} == {"total_steps": 500_000, "buffer_size": 500_000}
+
+    def changes(protocol):
+        config = paper.moiq_config("mo-hopper", protocol).to_dict()
+        return {k: v for k, v in config.items() if v != online_penalty[k]}
+
+    assert changes("cpu_recipe_fast_actor") == {"actor_lr": 3e-4}
+    assert changes("cpu_recipe_mid_actor") == {"actor_lr": 1e-4}
+    assert changes("cpu_recipe_long") == {"total_steps": 500_000, "buffer_size": 500_000}
 
 
 def test_figure2_shares_gail_runs_only_between_protocols_that_configure_gail_alike():
